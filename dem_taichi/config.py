@@ -1,0 +1,421 @@
+"""Scene configuration: TOML file -> frozen dataclasses, validated at load.
+
+A scene is a TOML file with one table per section. Each section maps to one frozen dataclass below;
+each field carries its allowed range or choices in ``metadata`` and a generic loader checks types,
+ranges and unknown keys, failing with a :class:`SceneError` that names the key and what is allowed.
+
+Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
+
+``[scene]``         name, seed, description
+``[particles]``     n_rods, n_spheres, diameter d, spacing, disc_mass m, initial_area_fraction,
+                    initial_speed (rms of the random gas velocity components)
+``[contact]``       k_n, e_n *or* gamma_n, k_t, gamma_t, mu, friction (on/off)
+``[long_range]``    enabled, pattern (acidic|basic|neutral), f_max_edge, f_max_inner, k_a_edge,
+                    k_a_inner
+``[van_der_waals]`` enabled, f_max, k
+``[integration]``   dt_safety, local_damping, steps_per_call, skin, execution, blow-up limits
+``[control]``       inertial_number_max, servo_gain, compression_strain_rate,
+                    target_specific_volume, relax_steps (the engine's built-in compression run)
+``[output]``        every, checkpoint_every
+
+Other packages may add sections (e.g. issue 4's ``[protocol]``) without editing this module:
+``register_section("protocol", ProtocolConfig)``; the loaded instance is then found in
+``scene.extensions["protocol"]``.
+
+Symbols: k_n normal stiffness, γ_n normal damping, e_n normal restitution, t_c contact duration
+(two discs of mass m): t_c = π / sqrt(2 k_n/m − (γ_n/m)²), e_n = exp(−γ_n t_c / m).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+__all__ = [
+    "SceneError",
+    "SceneSection",
+    "Scene",
+    "SceneInfo",
+    "Particles",
+    "Contact",
+    "LongRange",
+    "VanDerWaals",
+    "Integration",
+    "Control",
+    "Output",
+    "load_scene",
+    "scene_from_dict",
+    "scene_from_toml",
+    "scene_to_toml",
+    "register_section",
+    "builtin_scene_path",
+    "contact_duration",
+    "gamma_from_restitution",
+    "restitution_from_gamma",
+]
+
+
+class SceneError(ValueError):
+    """An invalid scene: the message names the offending key and what is allowed."""
+
+
+def _range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
+    return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
+
+
+def _choices(*values, doc=""):
+    return {"choices": tuple(values), "doc": doc}
+
+
+def _describe_range(meta) -> str:
+    lo, hi, lo_open, hi_open = meta["range"]
+    left = "(" if lo_open else "["
+    right = ")" if (hi_open or hi is None) else "]"
+    return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}"
+
+
+class SceneSection:
+    """Base of every section dataclass: validates field values after construction."""
+
+    SECTION = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            key = f"[{self.SECTION}] {f.name}"
+            if value is None:
+                if f.metadata.get("optional"):
+                    continue
+                raise SceneError(f"{key} is required")
+            kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+            kind = kind.replace(" | None", "")
+            if kind == "bool":
+                if not isinstance(value, bool):
+                    raise SceneError(f"{key} = {value!r}: must be true or false")
+            elif kind == "int":
+                if isinstance(value, bool) or not isinstance(value, int):
+                    raise SceneError(f"{key} = {value!r}: must be an integer")
+            elif kind == "float":
+                if isinstance(value, bool) or not isinstance(value, int | float):
+                    raise SceneError(f"{key} = {value!r}: must be a number")
+                if not math.isfinite(value):
+                    raise SceneError(f"{key} = {value!r}: must be finite")
+                object.__setattr__(self, f.name, float(value))
+                value = float(value)
+            elif kind == "str":
+                if not isinstance(value, str):
+                    raise SceneError(f"{key} = {value!r}: must be a string")
+            if "range" in f.metadata:
+                lo, hi, lo_open, hi_open = f.metadata["range"]
+                bad = (lo is not None and (value < lo or (lo_open and value == lo))) or (
+                    hi is not None and (value > hi or (hi_open and value == hi))
+                )
+                if bad:
+                    raise SceneError(
+                        f"{key} = {value!r} is out of range: allowed {_describe_range(f.metadata)}"
+                    )
+            if "choices" in f.metadata and value not in f.metadata["choices"]:
+                allowed = " | ".join(str(c) for c in f.metadata["choices"])
+                raise SceneError(f"{key} = {value!r}: allowed values are {allowed}")
+        self.check()
+
+    def check(self) -> None:
+        """Cross-field checks of the section (override)."""
+
+
+@dataclass(frozen=True)
+class SceneInfo(SceneSection):
+    SECTION = "scene"
+    name: str = "unnamed"
+    seed: int = field(default=0, metadata=_range(0, 2**31 - 1))
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Particles(SceneSection):
+    SECTION = "particles"
+    n_rods: int = field(default=40, metadata=_range(1, 10_000_000))
+    n_spheres: int = field(default=5, metadata=_range(1, 64))
+    diameter: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    spacing: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    disc_mass: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    initial_area_fraction: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    initial_speed: float = field(default=0.01, metadata=_range(0.0, None))
+
+    def check(self) -> None:
+        if self.spacing > self.diameter:
+            raise SceneError(
+                f"[particles] spacing = {self.spacing} > diameter = {self.diameter}: "
+                "discs of a rod must touch or overlap (allowed (0, diameter])"
+            )
+
+
+@dataclass(frozen=True)
+class Contact(SceneSection):
+    SECTION = "contact"
+    k_n: float = field(default=1.0e5, metadata=_range(0.0, None, lo_open=True))
+    e_n: float | None = field(
+        default=None, metadata={**_range(0.0, 1.0, lo_open=True), "optional": True}
+    )
+    gamma_n: float | None = field(default=None, metadata={**_range(0.0), "optional": True})
+    k_t: float = field(default=2.0e4, metadata=_range(0.0))
+    gamma_t: float = field(default=0.0, metadata=_range(0.0))
+    mu: float = field(default=0.5, metadata=_range(0.0))
+    friction: bool = True
+
+    def check(self) -> None:
+        if self.e_n is not None and self.gamma_n is not None:
+            raise SceneError("[contact] give either e_n or gamma_n, not both")
+
+
+@dataclass(frozen=True)
+class LongRange(SceneSection):
+    SECTION = "long_range"
+    enabled: bool = False
+    pattern: str = field(default="acidic", metadata=_choices("acidic", "basic", "neutral"))
+    f_max_edge: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+    f_max_inner: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+    k_a_edge: float = field(default=20.0, metadata=_range(0.0, None, lo_open=True))
+    k_a_inner: float = field(default=20.0, metadata=_range(0.0, None, lo_open=True))
+
+
+@dataclass(frozen=True)
+class VanDerWaals(SceneSection):
+    SECTION = "van_der_waals"
+    enabled: bool = False
+    f_max: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    k: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+
+
+@dataclass(frozen=True)
+class Integration(SceneSection):
+    SECTION = "integration"
+    dt_safety: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    local_damping: float = field(default=0.2, metadata=_range(0.0, 1.0, hi_open=True))
+    steps_per_call: int = field(default=100, metadata=_range(1, 1_000_000))
+    skin: float = field(default=0.3, metadata=_range(0.0, None, lo_open=True))
+    execution: str = field(default="auto", metadata=_choices("auto", "serial", "parallel"))
+    max_overlap: float = field(
+        default=0.2, metadata=_range(0.0, 1.0, lo_open=True, doc="blow-up bound on δ/d")
+    )
+    max_kinetic_energy_per_rod: float = field(
+        default=1.0e3, metadata=_range(0.0, None, lo_open=True)
+    )
+
+
+@dataclass(frozen=True)
+class Control(SceneSection):
+    SECTION = "control"
+    inertial_number_max: float = field(default=1.0e-3, metadata=_range(0.0, 1.0, lo_open=True))
+    servo_gain: float = field(default=0.5, metadata=_range(0.0, 1.0, lo_open=True))
+    compression_strain_rate: float = field(default=1.0e-3, metadata=_range(0.0, None, lo_open=True))
+    target_specific_volume: float = field(default=1.5, metadata=_range(1.0, None, lo_open=True))
+    relax_steps: int = field(default=5000, metadata=_range(0))
+
+
+@dataclass(frozen=True)
+class Output(SceneSection):
+    SECTION = "output"
+    every: int = field(default=1000, metadata=_range(1))
+    checkpoint_every: int = field(default=0, metadata=_range(0))
+
+
+_CORE_SECTIONS: dict[str, type[SceneSection]] = {
+    "scene": SceneInfo,
+    "particles": Particles,
+    "contact": Contact,
+    "long_range": LongRange,
+    "van_der_waals": VanDerWaals,
+    "integration": Integration,
+    "control": Control,
+    "output": Output,
+}
+_EXTENSION_SECTIONS: dict[str, type] = {}
+
+
+def register_section(name: str, cls: type) -> None:
+    """Allow an extra ``[name]`` table in scenes, loaded into the frozen dataclass ``cls``.
+
+    ``cls`` should derive from :class:`SceneSection` (to get the generic validation).
+    """
+    if name in _CORE_SECTIONS:
+        raise ValueError(f"section [{name}] is a core section")
+    _EXTENSION_SECTIONS[name] = cls
+
+
+def contact_duration(k_n: float, gamma_n: float, mass: float) -> float:
+    """Duration of a binary disc collision, t_c = π / sqrt(2k_n/m − (γ_n/m)²) (reduced mass m/2)."""
+    w2 = 2.0 * k_n / mass - (gamma_n / mass) ** 2
+    if w2 <= 0:
+        raise SceneError(f"[contact] gamma_n = {gamma_n} is overdamped for k_n = {k_n}")
+    return math.pi / math.sqrt(w2)
+
+
+def gamma_from_restitution(e_n: float, k_n: float, mass: float) -> float:
+    """γ_n giving restitution e_n for two discs of mass m: inverts e_n = exp(−γ_n t_c/m)."""
+    if e_n >= 1.0:
+        return 0.0
+    ln_e = math.log(e_n)
+    # e = exp(-γ t_c/m), t_c = π/sqrt(2k/m − γ²/m²)  =>  γ² = 2 k m ln²e / (π² + ln²e)
+    return math.sqrt(2.0 * k_n * mass * ln_e**2 / (math.pi**2 + ln_e**2))
+
+
+def restitution_from_gamma(gamma_n: float, k_n: float, mass: float) -> float:
+    """e_n = exp(−γ_n t_c / m)."""
+    return math.exp(-gamma_n * contact_duration(k_n, gamma_n, mass) / mass)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene. ``source_text`` keeps the TOML it was read from (for provenance)."""
+
+    scene: SceneInfo = field(default_factory=SceneInfo)
+    particles: Particles = field(default_factory=Particles)
+    contact: Contact = field(default_factory=Contact)
+    long_range: LongRange = field(default_factory=LongRange)
+    van_der_waals: VanDerWaals = field(default_factory=VanDerWaals)
+    integration: Integration = field(default_factory=Integration)
+    control: Control = field(default_factory=Control)
+    output: Output = field(default_factory=Output)
+    extensions: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    source_text: str = field(default="", compare=False, repr=False)
+
+    # Derived quantities -------------------------------------------------------------------
+    @property
+    def gamma_n(self) -> float:
+        """Normal damping γ_n (given, or derived from e_n; 0 when neither is given)."""
+        c, p = self.contact, self.particles
+        if c.gamma_n is not None:
+            return c.gamma_n
+        if c.e_n is not None:
+            return gamma_from_restitution(c.e_n, c.k_n, p.disc_mass)
+        return 0.0
+
+    @property
+    def contact_duration(self) -> float:
+        return contact_duration(self.contact.k_n, self.gamma_n, self.particles.disc_mass)
+
+    @property
+    def time_step(self) -> float:
+        """Δt = dt_safety × t_c."""
+        return self.integration.dt_safety * self.contact_duration
+
+    def replace(self, **sections: Any) -> Scene:
+        """Copy with whole sections replaced or with ``section={"key": value}`` updates."""
+        updates = {}
+        for name, value in sections.items():
+            current = getattr(self, name)
+            if isinstance(value, dict):
+                value = dataclasses.replace(current, **value)
+            updates[name] = value
+        return dataclasses.replace(self, **updates, source_text="")
+
+    def with_changes(self, **sections: dict) -> Scene:
+        """Alias of :meth:`replace` taking ``section={"key": value}`` dicts."""
+        return self.replace(**sections)
+
+
+def _load_section(cls: type, name: str, table: Any) -> Any:
+    if not isinstance(table, dict):
+        raise SceneError(f"[{name}] must be a table")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise SceneError(
+            f"[{name}] unknown key(s) {', '.join(unknown)}; "
+            f"allowed keys: {', '.join(sorted(known))}"
+        )
+    try:
+        return cls(**table)
+    except TypeError as exc:  # pragma: no cover - defensive
+        raise SceneError(f"[{name}] {exc}") from exc
+
+
+def scene_from_dict(data: dict, source_text: str = "") -> Scene:
+    """Build a :class:`Scene` from a nested dict (as returned by ``tomllib``)."""
+    allowed = {**_CORE_SECTIONS, **_EXTENSION_SECTIONS}
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise SceneError(
+            f"unknown section(s) {', '.join('[' + u + ']' for u in unknown)}; allowed sections: "
+            + ", ".join(sorted(allowed))
+        )
+    core = {
+        name: _load_section(cls, name, data.get(name, {})) for name, cls in _CORE_SECTIONS.items()
+    }
+    ext = {
+        name: _load_section(cls, name, data[name])
+        for name, cls in _EXTENSION_SECTIONS.items()
+        if name in data
+    }
+    scene = Scene(**core, extensions=MappingProxyType(ext), source_text=source_text)
+    _check_scene(scene)
+    return scene
+
+
+def _check_scene(scene: Scene) -> None:
+    scene.contact_duration  # noqa: B018 - raises on overdamped γ_n
+    p, lr = scene.particles, scene.long_range
+    if lr.enabled and lr.pattern == "acidic" and p.n_spheres < 3:
+        raise SceneError(
+            f"[long_range] pattern = 'acidic' needs n_spheres >= 3 (edge and inner discs); "
+            f"[particles] n_spheres = {p.n_spheres}"
+        )
+
+
+def scene_from_toml(text: str) -> Scene:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"invalid TOML: {exc}") from exc
+    return scene_from_dict(data, source_text=text)
+
+
+def builtin_scene_path(name: str) -> Path:
+    """Path of a scene shipped with the package (``smoke``, ``default``, ``paper``)."""
+    path = Path(__file__).parent / "scenes" / f"{name}.toml"
+    if not path.exists():
+        have = sorted(p.stem for p in (Path(__file__).parent / "scenes").glob("*.toml"))
+        raise SceneError(f"no built-in scene {name!r}; available: {', '.join(have)}")
+    return path
+
+
+def load_scene(path_or_name: str | Path) -> Scene:
+    """Load a scene from a TOML path or a built-in scene name (smoke, default, paper)."""
+    path = Path(path_or_name)
+    if not path.exists() and path.suffix == "" and len(path.parts) == 1:
+        path = builtin_scene_path(str(path_or_name))
+    if not path.exists():
+        raise SceneError(f"scene file {str(path)!r} does not exist")
+    return scene_from_toml(path.read_text())
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def scene_to_toml(scene: Scene) -> str:
+    """Write the full scene (every key, defaults included) as TOML; round-trips exactly."""
+    lines = []
+    sections = {name: getattr(scene, name) for name in _CORE_SECTIONS}
+    sections.update(scene.extensions)
+    for name, section in sections.items():
+        lines.append(f"[{name}]")
+        for f in dataclasses.fields(section):
+            value = getattr(section, f.name)
+            if value is None:
+                continue
+            lines.append(f"{f.name} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)

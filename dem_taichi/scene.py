@@ -1,0 +1,162 @@
+"""Rod geometry and the initial gas (numpy only, no Taichi).
+
+Symbols: N rods of n_s discs of diameter d and centre spacing s_p; disc mass m. Disc s of a rod sits
+at body-frame offset o_s = (s − (n_s − 1)/2) s_p along the axis a = (cos θ, sin θ)
+(docs: notes/dem_interfaces.md). Rod mass M = n_s m; moment of inertia
+I = Σ_s m o_s² + n_s m d²/8 (model.md §1.1). Solid area of a rod: n_s π d²/4 minus the lens overlaps
+of neighbouring discs when s_p < d.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dem_taichi.config import Scene, SceneError
+
+__all__ = [
+    "RodGeometry",
+    "rod_geometry",
+    "species_parameters",
+    "GasState",
+    "generate_gas",
+    "lens_area",
+]
+
+
+def lens_area(radius: float, distance: float) -> float:
+    """Area of the intersection of two discs of ``radius`` whose centres are ``distance`` apart."""
+    if distance >= 2 * radius:
+        return 0.0
+    r, s = radius, distance
+    return 2 * r * r * math.acos(s / (2 * r)) - 0.5 * s * math.sqrt(4 * r * r - s * s)
+
+
+@dataclass(frozen=True)
+class RodGeometry:
+    n_spheres: int
+    diameter: float
+    spacing: float
+    disc_mass: float
+    offsets: np.ndarray  # (n_s,) body-frame offset o_s along the axis
+    mass: float  # rod mass M = n_s m
+    inertia: float  # I = Σ m o_s² + n_s m d²/8
+    solid_area: float  # disc-union area of one rod
+    length: float  # tip to tip: (n_s − 1) s_p + d
+    max_offset: float  # max |o_s|
+
+
+def rod_geometry(scene: Scene) -> RodGeometry:
+    p = scene.particles
+    n, d, sp, m = p.n_spheres, p.diameter, p.spacing, p.disc_mass
+    offsets = (np.arange(n) - (n - 1) / 2.0) * sp
+    inertia = float(m * np.sum(offsets**2) + n * m * d * d / 8.0)
+    area = n * math.pi * d * d / 4.0 - (n - 1) * lens_area(d / 2.0, sp)
+    return RodGeometry(
+        n_spheres=n,
+        diameter=d,
+        spacing=sp,
+        disc_mass=m,
+        offsets=offsets,
+        mass=n * m,
+        inertia=inertia,
+        solid_area=area,
+        length=(n - 1) * sp + d,
+        max_offset=float(np.max(np.abs(offsets))),
+    )
+
+
+def species_parameters(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-disc-position charge c_s ∈ {−1, 0, 1}, F_max and k_a (notes/dem_interfaces.md).
+
+    acidic: edge +1, inner −1; basic: all −1; neutral: all 0 (also when long range is disabled).
+    """
+    n = scene.particles.n_spheres
+    lr = scene.long_range
+    edge = np.zeros(n, dtype=bool)
+    edge[0] = edge[-1] = True
+    charge = np.zeros(n, dtype=np.int32)
+    if lr.enabled:
+        if lr.pattern == "acidic":
+            charge = np.where(edge, 1, -1).astype(np.int32)
+        elif lr.pattern == "basic":
+            charge = -np.ones(n, dtype=np.int32)
+    f_max = np.where(edge, lr.f_max_edge, lr.f_max_inner).astype(float)
+    k_a = np.where(edge, lr.k_a_edge, lr.k_a_inner).astype(float)
+    return charge, f_max, k_a
+
+
+@dataclass(frozen=True)
+class GasState:
+    cell_lengths: np.ndarray  # (2,)
+    position: np.ndarray  # (N, 2) centroids in [0, L)
+    angle: np.ndarray  # (N,)
+    velocity: np.ndarray  # (N, 2)
+    angular_velocity: np.ndarray  # (N,)
+
+
+def generate_gas(scene: Scene, max_attempts_per_rod: int = 10_000) -> GasState:
+    """Random non-overlapping rods in a square periodic cell at the scene's area fraction.
+
+    Orientations are uniform in [0, π); a candidate is rejected when any of its discs lies closer
+    than d (plus the long-range range when it is on, so the gas starts force-free) to a disc of
+    another rod (minimum image). Velocities are Gaussian with rms ``initial_speed`` per component,
+    with the mean removed; angular velocities have the matching rms ``initial_speed / radius of
+    gyration``. Deterministic for a given ``[scene] seed``.
+    """
+    p = scene.particles
+    geo = rod_geometry(scene)
+    rng = np.random.default_rng(scene.scene.seed)
+    n = p.n_rods
+    side = math.sqrt(n * geo.solid_area / p.initial_area_fraction)
+    cell = np.array([side, side])
+    clearance = geo.diameter
+    if scene.long_range.enabled:
+        _, f_max, k_a = species_parameters(scene)
+        clearance += float(np.max(f_max / k_a))
+    if side < 2 * (geo.length + clearance):
+        raise SceneError(
+            f"[particles] n_rods = {n} gives a cell of side {side:.3g} < 2 x (rod length + range) "
+            f"= {2 * (geo.length + clearance):.3g}; use more rods or a lower initial_area_fraction"
+        )
+    # centroid bins of side >= rod length + clearance: only the 3x3 neighbouring bins can clash
+    n_bins = max(1, int(side // (geo.length + clearance)))
+    bins: dict[tuple[int, int], list[int]] = {}
+    disc_of_rod = np.zeros((n, geo.n_spheres, 2))
+    positions = np.zeros((n, 2))
+    angles = np.zeros(n)
+    for r in range(n):
+        for _attempt in range(max_attempts_per_rod):
+            x = rng.uniform(0.0, side, size=2)
+            th = rng.uniform(0.0, math.pi)
+            discs = x + geo.offsets[:, None] * np.array([math.cos(th), math.sin(th)])
+            bx, by = (int(x[0] / side * n_bins) % n_bins, int(x[1] / side * n_bins) % n_bins)
+            near = [
+                q
+                for ix in {(bx + k) % n_bins for k in (-1, 0, 1)}
+                for iy in {(by + k) % n_bins for k in (-1, 0, 1)}
+                for q in bins.get((ix, iy), ())
+            ]
+            if near:
+                other = disc_of_rod[near].reshape(-1, 2)
+                diff = discs[:, None, :] - other[None, :, :]
+                diff -= np.round(diff / cell) * cell
+                if np.min(np.einsum("ijk,ijk->ij", diff, diff)) < clearance * clearance:
+                    continue
+            positions[r], angles[r] = x, th
+            disc_of_rod[r] = discs
+            bins.setdefault((bx, by), []).append(r)
+            break
+        else:
+            raise SceneError(
+                f"could not place rod {r} of {n} without overlap after {max_attempts_per_rod} "
+                f"attempts; lower [particles] initial_area_fraction = {p.initial_area_fraction}"
+            )
+    velocity = rng.normal(0.0, p.initial_speed, size=(n, 2))
+    if n > 1:
+        velocity -= velocity.mean(axis=0)
+    gyration = math.sqrt(geo.inertia / geo.mass)
+    omega = rng.normal(0.0, p.initial_speed / gyration, size=n)
+    return GasState(cell, positions, angles, velocity, omega)

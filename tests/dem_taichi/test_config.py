@@ -1,0 +1,96 @@
+"""Scene loading: validation messages, derived quantities, TOML round trip, gas generation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dem_taichi.config import (
+    SceneError,
+    contact_duration,
+    gamma_from_restitution,
+    load_scene,
+    restitution_from_gamma,
+    scene_from_toml,
+    scene_to_toml,
+)
+from dem_taichi.scene import generate_gas, lens_area, rod_geometry
+
+
+@pytest.mark.parametrize("name", ["smoke", "default", "paper"])
+def test_builtin_scenes_load_and_round_trip(name):
+    scene = load_scene(name)
+    assert scene.scene.name == name
+    assert scene_from_toml(scene_to_toml(scene)) == scene
+
+
+def test_paper_scene_is_the_study_size():
+    scene = load_scene("paper")
+    assert (scene.particles.n_rods, scene.particles.n_spheres) == (1520, 5)
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        ("[contact]\nk_n = -1.0", "[contact] k_n = -1.0 is out of range: allowed (0.0, inf)"),
+        ("[contact]\nkn = 1.0", "unknown key(s) kn; allowed keys:"),
+        ("[long_range]\npattern = 'salty'", "allowed values are acidic | basic | neutral"),
+        ("[integration]\ndt_safety = 0.9", "[integration] dt_safety = 0.9 is out of range"),
+        ("[particles]\nn_rods = 2.5", "[particles] n_rods = 2.5: must be an integer"),
+        ("[contact]\nfriction = 1", "[contact] friction = 1: must be true or false"),
+        ("[gravity]\ng = 9.81", "unknown section(s) [gravity]"),
+        ("[contact]\ne_n = 0.5\ngamma_n = 3.0", "either e_n or gamma_n"),
+        ("[particles]\nspacing = 1.5", "spacing = 1.5 > diameter"),
+        ("[particles]\nn_spheres = 2\n[long_range]\nenabled = true", "needs n_spheres >= 3"),
+        ("[contact]\ngamma_n = 1e6", "overdamped"),
+        ("[scene\nname='x'", "invalid TOML"),
+    ],
+)
+def test_invalid_scenes_name_the_key_and_what_is_allowed(text, fragment):
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(text)
+    assert fragment in str(info.value)
+
+
+def test_restitution_and_damping_are_inverse():
+    k, m = 1.0e5, 1.0
+    for e in (0.1, 0.5, 0.9):
+        gamma = gamma_from_restitution(e, k, m)
+        assert restitution_from_gamma(gamma, k, m) == pytest.approx(e, rel=1e-12)
+    assert contact_duration(k, 0.0, m) == pytest.approx(math.pi / math.sqrt(2 * k / m))
+
+
+def test_time_step_is_safety_times_contact_duration():
+    scene = scene_from_toml("[contact]\nk_n = 4.0e4\ne_n = 0.7\n[integration]\ndt_safety = 0.1")
+    gamma = gamma_from_restitution(0.7, 4.0e4, 1.0)
+    assert scene.time_step == pytest.approx(0.1 * math.pi / math.sqrt(8.0e4 - gamma**2))
+
+
+def test_rod_geometry_inertia_and_area():
+    scene = scene_from_toml("[particles]\nn_spheres = 3\nspacing = 0.5\ndisc_mass = 2.0")
+    geo = rod_geometry(scene)
+    assert geo.mass == 6.0
+    assert geo.inertia == pytest.approx(2.0 * (0.25 + 0.25) + 3 * 2.0 / 8.0)
+    lens = 2 * 0.25 * math.acos(0.5) - 0.25 * math.sqrt(1 - 0.25)
+    assert lens_area(0.5, 0.5) == pytest.approx(lens)
+    assert geo.solid_area == pytest.approx(3 * math.pi / 4 - 2 * lens)
+
+
+def test_gas_is_non_overlapping_seeded_and_at_the_area_fraction():
+    scene = load_scene("smoke")
+    gas = generate_gas(scene)
+    again = generate_gas(scene)
+    assert np.array_equal(gas.position, again.position)
+    geo = rod_geometry(scene)
+    n = scene.particles.n_rods
+    area = gas.cell_lengths.prod()
+    assert n * geo.solid_area / area == pytest.approx(scene.particles.initial_area_fraction)
+    axis = np.stack([np.cos(gas.angle), np.sin(gas.angle)], axis=1)
+    discs = gas.position[:, None, :] + geo.offsets[None, :, None] * axis[:, None, :]
+    flat = discs.reshape(-1, 2)
+    rod = np.repeat(np.arange(n), geo.n_spheres)
+    diff = flat[:, None] - flat[None]
+    diff -= np.round(diff / gas.cell_lengths) * gas.cell_lengths
+    dist = np.linalg.norm(diff, axis=-1)
+    assert dist[rod[:, None] != rod[None, :]].min() >= scene.particles.diameter
+    assert np.abs(gas.velocity.mean(axis=0)).max() < 1e-12
