@@ -1,0 +1,204 @@
+"""Checkpoints for an exact resume: numpy arrays + JSON metadata in one ``.npz``, saved atomically.
+
+A checkpoint is written to a temporary file in the target's directory, flushed to disk
+(``fsync``) and moved over the target with :func:`os.replace`, so a crash at any moment leaves
+either the previous checkpoint or the new one, never a mix. The file is an uncompressed ``.npz``
+(zip; every member has a CRC-32 that is checked on load) holding the arrays under their names and
+one extra member, ``__meta__``: a JSON text with the format name and version, the name, dtype and
+shape of every array (checked on load) and the caller's metadata. No pickles: object arrays are
+refused, and files are loaded with ``allow_pickle=False``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FORMAT_NAME = "dem_taichi.checkpoint"
+#: Bump when the layout changes; files with a greater version are refused by this code.
+FORMAT_VERSION = 1
+META_KEY = "__meta__"
+CHECKPOINT_PREFIX = "checkpoint_"
+CHECKPOINT_SUFFIX = ".npz"
+_STEP_PATTERN = re.compile(rf"^{CHECKPOINT_PREFIX}(\d+){re.escape(CHECKPOINT_SUFFIX)}$")
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint file that is corrupt, not a checkpoint, or of an incompatible version."""
+
+
+def checkpoint_path(directory: str | os.PathLike[str], step: int) -> Path:
+    """``DIR/checkpoint_<step, 12 digits>.npz``: names sort in step order."""
+    if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 0:
+        raise ValueError(f"step must be a non-negative integer, got {step!r}")
+    return Path(directory) / f"{CHECKPOINT_PREFIX}{int(step):012d}{CHECKPOINT_SUFFIX}"
+
+
+def _check_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    checked: dict[str, np.ndarray] = {}
+    for name, value in arrays.items():
+        if not isinstance(name, str) or not name.isidentifier() or name == META_KEY:
+            raise ValueError(
+                f"array name {name!r} not allowed: use an identifier other than {META_KEY!r}"
+            )
+        array = np.asarray(value)
+        if array.dtype.kind not in "biufcUS":
+            raise TypeError(
+                f"array {name!r} has dtype {array.dtype}; only numeric, bool and fixed-width "
+                "string arrays can be checkpointed (no pickles)"
+            )
+        checked[name] = array
+    return checked
+
+
+def _fsync_directory(directory: Path) -> None:
+    # Makes the rename durable; not possible on every platform/filesystem, hence best effort.
+    with contextlib.suppress(OSError):
+        descriptor = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(descriptor)
+        finally:
+            os.close(descriptor)
+
+
+def save_checkpoint(
+    path: str | os.PathLike[str],
+    arrays: Mapping[str, np.ndarray],
+    meta: Mapping[str, Any],
+) -> Path:
+    """Save ``arrays`` and JSON-serialisable ``meta`` to ``path`` atomically; returns the path.
+
+    Arrays come back from :func:`load_checkpoint` bit for bit, with their dtypes and shapes.
+    """
+    target = Path(path)
+    if target.suffix != CHECKPOINT_SUFFIX:
+        raise ValueError(f"checkpoint path {target} must end in {CHECKPOINT_SUFFIX}")
+    checked = _check_arrays(arrays)
+    header = {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "arrays": {
+            name: {"dtype": array.dtype.str, "shape": list(array.shape)}
+            for name, array in checked.items()
+        },
+        "meta": dict(meta),
+    }
+    try:
+        meta_text = json.dumps(header, allow_nan=True, sort_keys=True)
+    except (TypeError, ValueError) as error:
+        raise TypeError(
+            f"checkpoint meta must be JSON-serialisable (str, int, float, bool, None, lists, "
+            f"dicts): {error}"
+        ) from error
+    target.parent.mkdir(parents=True, exist_ok=True)
+    handle, temp_name = tempfile.mkstemp(
+        dir=target.parent, prefix=f".{target.name}.", suffix=".tmp"
+    )
+    temp = Path(temp_name)
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            np.savez(stream, **checked, **{META_KEY: np.array(meta_text)})
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temp, target)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+    _fsync_directory(target.parent)
+    return target
+
+
+def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(arrays, meta)`` of a checkpoint saved by :func:`save_checkpoint`.
+
+    Raises FileNotFoundError for a missing file and :class:`CheckpointError` for a file that is
+    corrupt (bad zip, CRC mismatch, missing members, dtype/shape differing from the header), not
+    a checkpoint, or of a newer format version.
+    """
+    source = Path(path)
+    if not source.is_file():
+        raise FileNotFoundError(f"checkpoint {source} does not exist")
+    try:
+        with np.load(source, allow_pickle=False) as archive:
+            if META_KEY not in archive.files:
+                raise CheckpointError(f"{source} is not a dem_taichi checkpoint (no {META_KEY})")
+            header = json.loads(str(archive[META_KEY][()]))
+            if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+                raise CheckpointError(f"{source} is not a {FORMAT_NAME} file")
+            version = header.get("format_version")
+            if not isinstance(version, int) or version > FORMAT_VERSION:
+                raise CheckpointError(
+                    f"{source} has checkpoint format version {version!r}; this code reads "
+                    f"versions up to {FORMAT_VERSION} (update dem_taichi or rerun)"
+                )
+            listed = header["arrays"]
+            stored = set(archive.files) - {META_KEY}
+            if set(listed) != stored:
+                raise CheckpointError(
+                    f"{source} is corrupt: arrays {sorted(stored)} do not match the header's "
+                    f"{sorted(listed)}"
+                )
+            arrays: dict[str, np.ndarray] = {}
+            for name, spec in listed.items():
+                array = archive[name]
+                if array.dtype.str != spec["dtype"] or list(array.shape) != spec["shape"]:
+                    raise CheckpointError(
+                        f"{source} is corrupt: array {name!r} is {array.dtype.str}{array.shape}, "
+                        f"the header says {spec['dtype']}{tuple(spec['shape'])}"
+                    )
+                arrays[name] = array
+    except CheckpointError:
+        raise
+    except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError) as error:
+        raise CheckpointError(f"{source} is corrupt or not a checkpoint: {error}") from error
+    return arrays, dict(header["meta"])
+
+
+def list_checkpoints(directory: str | os.PathLike[str]) -> list[Path]:
+    """Checkpoints named by :func:`checkpoint_path` in ``directory``, oldest step first."""
+    folder = Path(directory)
+    if not folder.is_dir():
+        return []
+    found = [
+        (int(match.group(1)), entry)
+        for entry in folder.iterdir()
+        if (match := _STEP_PATTERN.match(entry.name)) and entry.is_file()
+    ]
+    return [entry for _, entry in sorted(found)]
+
+
+def latest_checkpoint(directory: str | os.PathLike[str]) -> Path | None:
+    """The checkpoint of the greatest step in ``directory``, or None."""
+    found = list_checkpoints(directory)
+    return found[-1] if found else None
+
+
+def rotate_checkpoints(directory: str | os.PathLike[str], keep: int = 2) -> list[Path]:
+    """Delete all but the ``keep`` latest checkpoints (and temporary files left by crashed saves).
+
+    Returns the deleted paths. Call it after a successful :func:`save_checkpoint`, from the one
+    process that writes checkpoints in ``directory``.
+    """
+    if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
+        raise ValueError(f"keep must be an int >= 1, got {keep!r}")
+    folder = Path(directory)
+    found = list_checkpoints(folder)
+    removed = found[:-keep] if len(found) > keep else []
+    if folder.is_dir():
+        removed += sorted(
+            entry
+            for entry in folder.iterdir()
+            if entry.name.startswith(f".{CHECKPOINT_PREFIX}") and entry.name.endswith(".tmp")
+        )
+    for entry in removed:
+        entry.unlink(missing_ok=True)
+    return removed
