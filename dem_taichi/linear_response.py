@@ -1,16 +1,65 @@
 """Linear-response (zero-amplitude) elastic stiffness of a rod network (numpy/scipy, no Taichi).
 
-This module defines :class:`NetworkSnapshot`, the numpy picture of a static network that the engine
-exports (``Simulation.snapshot()``), see ``notes/dem_interfaces.md``.
+Defines :class:`NetworkSnapshot`, the numpy picture of a static network that the engine exports
+(``Simulation.snapshot()``, ``notes/dem_interfaces.md``), and :func:`linear_response`, the
+linear-response probe of ``shared/design/model.md`` §1.6: the exact derivative dσ/dε of the
+engine's stress definition after relaxation to force-and-torque equilibrium, i.e. the
+zero-amplitude limit of the dynamic strain probe.
+
+Symbols (DEM units; see :mod:`dem_taichi.forcelaw` for the pair laws)
+    q = (X_r, Y_r, θ_r)   rod DOFs (3 per rod); u, φ their non-affine increments
+    G                     affine displacement gradient of the cell: X -> (I + G) X,
+                          shift -> (I + G) shift; rod angles are not driven affinely (they relax).
+                          Compression-positive strain ε: G = -ε (tension-convention gradient).
+    r, ρ, n, t            pair vector x_i - x_j - shift, its length, normal, tangent t = ẑ × n
+    l                     centroid branch vector X_P - X_Q - shift
+    w = (dl_x, dl_y, φ_P, φ_Q)   the increments a pair feels; dl = G l + u_P - u_Q
+    B                     dr = B w: B = [I | o_i ẑ×a_P | -o_j ẑ×a_Q]
+    N, k_N                total normal force (repulsive > 0) and -dN/dρ (k_n + s k_a + vdW)
+    T                     tangential force along t (F_t = T t = -k_t ξ_t t)
+    R                     generalised forces (F_x, F_y, torque) on every rod
+    H = -∂R/∂q            stiffness matrix ("Hessian"; symmetric when all forces are conservative)
+    Γ = ∂R/∂G             mixed DOF-strain block
+    σ = (1/A) Σ f ⊗ l     engine stress, compression positive, A = det(I + G) A_0
+
+Linearised pair force (exact first derivatives of f = N n + T t):
+    df = -k_N n (n·dr) + (N/ρ) t (t·dr) - (T/ρ) n (t·dr) + t dT,
+    stuck contact:   dT = -k_t (t·dr - ρ (φ_P + φ_Q)/2)    (ξ_t += tangential relative displacement
+                     of the contact points, the spring vector turning with n as in the engine);
+    sliding, "free": dT = -sign(T) μ k_n (n·dr)            (force stays on the Coulomb cap μ k_n δ).
+Torques about the centroids, contact point x_c = x_i - r/2: τ_P = h_P × f, h_P = o_i a_P - r/2;
+τ_Q = -h_Q × f, h_Q = o_j a_Q + r/2; their derivatives include dh × f (lever-arm terms).
+The terms proportional to the current forces (N/ρ, T/ρ, dh × f, and in the stress f ⊗ dl and
+-tr(G) σ) are the geometric (pre-stress) terms; ``include_geometric=False`` drops all of them.
+
+Relaxation and stiffness (all exact at first order):
+    dR = -H dq + Γ dG = 0  ->  dq = H⁻¹ Γ dG
+    dσ/dG = D_G + D_q H⁻¹ Γ,  D_G = -σ ⊗ I + (1/A) Σ ∂(f ⊗ l)/∂G|_affine,  D_q = (1/A) Σ ∂(f ⊗ l)/∂q
+For conservative forces D_q = Γᵀ/A (up to sign) and this is the familiar
+C = (1/A)[Born term - Γᵀ H⁻¹ Γ] plus the stress terms.
+
+Zero modes: (i) rods with at most one active pair are pruned iteratively (exact: in equilibrium
+such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
+relaxed response; a rod with no pair is a rattler); (ii) the two global translations are removed
+exactly by pinning the translation of the best-connected rod (every pair exerts equal and opposite
+forces, so the rows of the pinned DOFs follow from the others); (iii) the reduced H is factorised
+with SuperLU; if it is exactly singular (other floppy modes), H + η s I is used with
+η = ``regularisation`` (relative) and s = max|diag H|: modes that the strain does not excite
+drop out as η -> 0 and the flag ``regularised`` is set in :class:`SolverInfo`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+import scipy.sparse as sparse
+import scipy.sparse.linalg as sparse_linalg
 
-__all__ = ["NetworkSnapshot"]
+from dem_taichi import forcelaw
+
+__all__ = ["LinearResponse", "NetworkSnapshot", "SolverInfo", "linear_response", "voigt_stiffness"]
 
 
 def _as_array(name: str, value, dtype, shape: tuple) -> np.ndarray:
@@ -155,3 +204,366 @@ class NetworkSnapshot:
     def n_pairs(self) -> int:
         """Number of listed pairs P."""
         return int(self.pair_i.shape[0])
+
+
+# --------------------------------------------------------------------------------------------
+# Linear response
+# --------------------------------------------------------------------------------------------
+
+_FLAT = ("xx", "xy", "yx", "yy")  # flattening of 2x2 tensors: index 2a + b
+
+
+@dataclass(frozen=True)
+class SolverInfo:
+    """How the non-affine relaxation was solved.
+
+    Attributes:
+        n_dof: rod DOFs of the reduced system (3 per kept rod minus 2 pinned translations).
+        n_pairs_used: active pairs between kept rods.
+        pinned_rod: rod whose translation was fixed to remove the global translations (-1: none).
+        regularised: True if H was exactly singular and H + η s I was solved instead.
+        regularisation: η s actually added (0 when not regularised).
+        residual: max |H u - Γ| / max |Γ| of the solution.
+        unbalanced_force: max |R| over rods (forces and torques) / mean |f| of active pairs;
+            the response is exact only for an equilibrium (small value).
+        stress_asymmetry: |dσ_xy - dσ_yx| / max |dσ| of the relaxed response (0 in equilibrium).
+        seconds: wall time of the assembly and solve.
+    """
+
+    n_dof: int
+    n_pairs_used: int
+    pinned_rod: int
+    regularised: bool
+    regularisation: float
+    residual: float
+    unbalanced_force: float
+    stress_asymmetry: float
+    seconds: float
+
+
+@dataclass(frozen=True)
+class LinearResponse:
+    """Zero-amplitude elastic stiffness of a network (stress units, force/length).
+
+    Voigt order (xx, yy, xy); Δσ = C Δε with σ and ε compression positive, ε_xy columns in
+    engineering shear γ = 2 ε_xy, σ_xy the symmetric part.
+
+    Attributes:
+        stiffness: C (3, 3) after non-affine relaxation.
+        affine_stiffness: the affine part (no relaxation, including the stress-definition terms).
+        non_affine_stiffness: the relaxation correction, stiffness - affine_stiffness.
+        tangent: (2, 2, 2, 2) dσ_ab/dG_cd for the tension-convention displacement gradient G
+            (ε = -G), including rotations; the source of every modulus below.
+        stress: σ (2, 2) of the snapshot, compression positive.
+        e_oed_v: C_yyyy, constrained modulus for ε_yy with ε_xx fixed (= dynamic-probe E_oed,v).
+        e_oed_h: C_xxxx.
+        bulk_modulus: dp/dε_v with p = (σ_xx + σ_yy)/2, ε_v = ε_xx + ε_yy: (C11+C12+C21+C22)/4.
+        pure_shear_modulus: ½ d(σ_xx - σ_yy)/d(ε_xx - ε_yy) = (C11 + C22 - C12 - C21)/4.
+        simple_shear_modulus: dσ_xy/dγ under simple shear x += γ y (includes the rotation).
+        voigt_shear_modulus: C_33 = dσ_xy/dγ for the symmetric shear ε_xy = ε_yx = γ/2.
+        n_rattlers: rods pruned (no pair, or dangling by one pair, iteratively).
+        rattlers: their indices.
+        n_floppy_modes: estimate, LU pivots below 1e-8 max pivot of the solved matrix (0 if the
+            exact factorisation succeeded without tiny pivots).
+        sliding_contacts: "free" or "stuck"; include_geometric: whether pre-stress terms are in.
+        solver: :class:`SolverInfo`.
+    """
+
+    stiffness: np.ndarray
+    affine_stiffness: np.ndarray
+    non_affine_stiffness: np.ndarray
+    tangent: np.ndarray
+    stress: np.ndarray
+    e_oed_v: float
+    e_oed_h: float
+    bulk_modulus: float
+    pure_shear_modulus: float
+    simple_shear_modulus: float
+    voigt_shear_modulus: float
+    n_rattlers: int
+    rattlers: np.ndarray
+    n_floppy_modes: int
+    sliding_contacts: str
+    include_geometric: bool
+    solver: SolverInfo
+
+
+def voigt_stiffness(tangent: np.ndarray) -> np.ndarray:
+    """Voigt C (3, 3) (xx, yy, xy; engineering γ) from T_abcd = dσ_ab/dG_cd, with ε = -G.
+
+    Columns: ε_xx -> G_xx = -ε_xx; ε_yy -> G_yy = -ε_yy; γ -> G_xy = G_yx = -γ/2.
+    Rows: σ_xx, σ_yy, (σ_xy + σ_yx)/2.
+    """
+    t = np.asarray(tangent, dtype=float).reshape(4, 4)
+    columns = np.stack([-t[:, 0], -t[:, 3], -0.5 * (t[:, 1] + t[:, 2])], axis=1)
+    return np.stack([columns[0], columns[3], 0.5 * (columns[1] + columns[2])], axis=0)
+
+
+def _perp(vector: np.ndarray) -> np.ndarray:
+    """ẑ × v = (-v_y, v_x) for (..., 2) arrays."""
+    return np.stack([-vector[..., 1], vector[..., 0]], axis=-1)
+
+
+def _active_pairs(pairs: forcelaw.PairForces) -> np.ndarray:
+    """Pairs that carry a force or a stiffness (contacts, long-range/vdW within range)."""
+    return pairs.in_contact | (pairs.normal_force != 0.0) | (pairs.normal_stiffness != 0.0)
+
+
+def _prune_rattlers(rod_i, rod_j, active, n_rods) -> np.ndarray:
+    """Iteratively mark rods with at most one active pair to kept rods; returns the keep mask."""
+    keep = np.ones(n_rods, dtype=bool)
+    while True:
+        used = active & keep[rod_i] & keep[rod_j]
+        count = np.bincount(rod_i[used], minlength=n_rods) + np.bincount(
+            rod_j[used], minlength=n_rods
+        )
+        drop = keep & (count <= 1)
+        if not np.any(drop):
+            return keep
+        keep &= ~drop
+
+
+def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, sliding_free: np.ndarray,
+                    include_geometric: bool):  # fmt: skip
+    """Per-pair K (P, 6, 4) = d(F_P, τ_P, F_Q, τ_Q)/dw and Jσ (P, 4, 4) = d(f ⊗ l)/dw."""
+    n_s = snapshot.n_spheres
+    offsets = forcelaw.disc_offsets(n_s, snapshot.spacing)
+    rod_i = snapshot.pair_i // n_s
+    rod_j = snapshot.pair_j // n_s
+    o_i = offsets[snapshot.pair_i % n_s]
+    o_j = offsets[snapshot.pair_j % n_s]
+    angle_i = snapshot.rod_angle[rod_i]
+    angle_j = snapshot.rod_angle[rod_j]
+    axis_i = np.stack([np.cos(angle_i), np.sin(angle_i)], axis=-1)
+    axis_j = np.stack([np.cos(angle_j), np.sin(angle_j)], axis=-1)
+    perp_i = _perp(axis_i)
+    perp_j = _perp(axis_j)
+    n_pairs = rod_i.shape[0]
+    geometric = 1.0 if include_geometric else 0.0
+
+    r = pairs.separation
+    rho = pairs.distance
+    n = pairs.normal
+    t = pairs.tangent
+    f = pairs.force
+    tangential = np.sum(pairs.tangential_force * t, axis=-1)  # T
+    normal_force = pairs.normal_force  # N
+
+    b = np.zeros((n_pairs, 2, 4))  # dr = B w
+    b[:, 0, 0] = 1.0
+    b[:, 1, 1] = 1.0
+    b[:, :, 2] = o_i[:, None] * perp_i
+    b[:, :, 3] = -o_j[:, None] * perp_j
+    n_b = np.einsum("pa,pak->pk", n, b)  # n·dr per unit w
+    t_b = np.einsum("pa,pak->pk", t, b)  # t·dr per unit w
+
+    # dT: stuck springs (contacts not sliding freely) and sliding contacts on the cap
+    stuck = pairs.in_contact & ~sliding_free
+    d_tangential = np.zeros((n_pairs, 4))
+    rolling = np.zeros((n_pairs, 4))
+    rolling[:, 2] = rolling[:, 3] = 0.5 * rho
+    d_tangential[stuck] = -snapshot.k_t * (t_b[stuck] - rolling[stuck])
+    slide = pairs.in_contact & sliding_free
+    d_tangential[slide] = (
+        -np.sign(tangential[slide])[:, None] * snapshot.mu * snapshot.k_n * n_b[slide]
+    )
+
+    j_f = (
+        -pairs.normal_stiffness[:, None, None] * n[:, :, None] * n_b[:, None, :]
+        + t[:, :, None] * d_tangential[:, None, :]
+        + geometric
+        * (
+            (normal_force / rho)[:, None, None] * t[:, :, None] * t_b[:, None, :]
+            - (tangential / rho)[:, None, None] * n[:, :, None] * t_b[:, None, :]
+        )
+    )
+
+    lever_i = o_i[:, None] * axis_i - 0.5 * r
+    lever_j = o_j[:, None] * axis_j + 0.5 * r
+    d_lever_i = -0.5 * b
+    d_lever_i[:, :, 2] += o_i[:, None] * perp_i
+    d_lever_j = 0.5 * b.copy()
+    d_lever_j[:, :, 3] += o_j[:, None] * perp_j
+    j_force = np.stack([f[:, 1], -f[:, 0]], axis=-1)  # dh × f = (f_y, -f_x)·dh
+    d_torque_i = np.einsum("pa,pak->pk", _perp(lever_i), j_f) + geometric * np.einsum(
+        "pa,pak->pk", j_force, d_lever_i
+    )
+    d_torque_j = -np.einsum("pa,pak->pk", _perp(lever_j), j_f) - geometric * np.einsum(
+        "pa,pak->pk", j_force, d_lever_j
+    )
+    k = np.empty((n_pairs, 6, 4))
+    k[:, 0:2] = j_f
+    k[:, 2] = d_torque_i
+    k[:, 3:5] = -j_f
+    k[:, 5] = d_torque_j
+
+    branch = pairs.branch
+    j_sigma = np.einsum("pak,pb->pabk", j_f, branch)
+    for a in range(2):
+        for bb in range(2):
+            j_sigma[:, a, bb, bb] += geometric * f[:, a]
+    return k, j_sigma.reshape(n_pairs, 4, 4)
+
+
+def linear_response(
+    snapshot: NetworkSnapshot,
+    sliding_contacts: Literal["free", "stuck"] = "free",
+    include_geometric: bool = True,
+    regularisation: float = 1e-10,
+) -> LinearResponse:
+    """Zero-amplitude stiffness dσ/dε of a network in force-and-torque equilibrium.
+
+    Args:
+        snapshot: the network (positions, pairs, tangential springs, sliding flags).
+        sliding_contacts: "free": contacts at the Coulomb cap (snapshot flag, or |k_t ξ| above the
+            cap) keep their tangential force on the cap μ k_n δ while the contact keeps sliding
+            (the loading branch); "stuck": every contact, sliding or not, responds with its spring
+            k_t (the reversal/unloading branch).
+        include_geometric: keep the pre-stress terms (needed for the exact dσ/dε).
+        regularisation: relative η used only if the reduced H is exactly singular.
+
+    Returns: :class:`LinearResponse`. See the module docstring for the method.
+    """
+    import time
+
+    if sliding_contacts not in ("free", "stuck"):
+        raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
+    if not (np.isfinite(regularisation) and regularisation > 0.0):
+        raise ValueError(f"regularisation = {regularisation!r}: need a finite value > 0")
+    start = time.perf_counter()
+    pairs = forcelaw.pair_forces(snapshot)
+    n_rods = snapshot.n_rods
+    n_s = snapshot.n_spheres
+    rod_i = snapshot.pair_i // n_s
+    rod_j = snapshot.pair_j // n_s
+    area = float(np.prod(snapshot.cell_lengths))
+    stress = np.einsum("pa,pb->ab", pairs.force, pairs.branch) / area
+
+    force, torque = forcelaw.rod_forces_and_torques(snapshot)
+    active = _active_pairs(pairs)
+    force_scale = np.mean(np.linalg.norm(pairs.force[active], axis=-1)) if np.any(active) else 0.0
+    unbalanced = (
+        max(np.max(np.abs(force)), np.max(np.abs(torque))) / force_scale
+        if force_scale > 0.0 and n_rods
+        else 0.0
+    )
+
+    keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
+    used = active & keep_rod[rod_i] & keep_rod[rod_j]
+    flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
+    sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
+
+    k_pair, j_sigma = _pair_jacobians(snapshot, pairs, sliding_free, include_geometric)
+    k_pair = k_pair[used]
+    j_sigma = j_sigma[used]
+    branch = pairs.branch[used]
+    n_used = int(np.count_nonzero(used))
+
+    # w = S q_pair + W_G G
+    select = np.zeros((4, 6))
+    select[0, 0] = select[1, 1] = 1.0
+    select[0, 3] = select[1, 4] = -1.0
+    select[2, 2] = select[3, 5] = 1.0
+    w_strain = np.zeros((n_used, 4, 4))
+    w_strain[:, 0, 0] = branch[:, 0]  # dl_x = G_xx l_x + G_xy l_y
+    w_strain[:, 0, 1] = branch[:, 1]
+    w_strain[:, 1, 2] = branch[:, 0]  # dl_y = G_yx l_x + G_yy l_y
+    w_strain[:, 1, 3] = branch[:, 1]
+
+    dofs = np.concatenate(
+        [3 * rod_i[used, None] + np.arange(3), 3 * rod_j[used, None] + np.arange(3)], axis=1
+    )  # (P, 6)
+    n_dof_all = 3 * n_rods
+    h_local = -np.einsum("pik,kj->pij", k_pair, select)
+    hessian = sparse.coo_matrix(
+        (
+            h_local.ravel(),
+            (np.repeat(dofs, 6, axis=1).ravel(), np.tile(dofs, (1, 6)).ravel()),
+        ),
+        shape=(n_dof_all, n_dof_all),
+    ).tocsc()
+    gamma = np.zeros((n_dof_all, 4))
+    np.add.at(gamma, dofs, np.einsum("pik,pkc->pic", k_pair, w_strain))
+    d_q = np.zeros((4, n_dof_all))
+    np.add.at(d_q.T, dofs, np.einsum("pak,kj->pja", j_sigma, select) / area)
+    geometric = 1.0 if include_geometric else 0.0
+    d_g = (
+        -geometric * np.outer(stress.ravel(), [1.0, 0.0, 0.0, 1.0])
+        + np.einsum("pak,pkc->ac", j_sigma, w_strain) / area
+    )
+
+    # reduced system: kept rods, translation of the best-connected rod pinned
+    keep_dof = np.repeat(keep_rod, 3)
+    pinned = -1
+    if n_used:
+        count = np.bincount(rod_i[used], minlength=n_rods) + np.bincount(
+            rod_j[used], minlength=n_rods
+        )
+        pinned = int(np.argmax(count))
+        keep_dof[3 * pinned : 3 * pinned + 2] = False
+    index = np.flatnonzero(keep_dof)
+    relaxation = np.zeros((n_dof_all, 4))
+    regularised = False
+    added = 0.0
+    residual = 0.0
+    n_floppy = 0
+    if index.size:
+        reduced = hessian[index][:, index].tocsc()
+        rhs = gamma[index]
+        try:
+            factor = sparse_linalg.splu(reduced)
+            solution = factor.solve(rhs)
+            if not np.all(np.isfinite(solution)):
+                raise RuntimeError("non-finite solution")
+        except RuntimeError:
+            regularised = True
+            scale = float(np.max(np.abs(reduced.diagonal()))) or 1.0
+            added = regularisation * scale
+            reduced = (reduced + added * sparse.identity(index.size, format="csc")).tocsc()
+            factor = sparse_linalg.splu(reduced)
+            solution = factor.solve(rhs)
+        pivots = np.abs(factor.U.diagonal())
+        n_floppy = int(np.count_nonzero(pivots <= 1e-8 * pivots.max()))
+        rhs_scale = float(np.max(np.abs(rhs))) or 1.0
+        residual = float(np.max(np.abs(reduced @ solution - rhs))) / rhs_scale
+        relaxation[index] = solution
+
+    non_affine = d_q @ relaxation
+    tangent = d_g + non_affine
+    asymmetry_scale = float(np.max(np.abs(tangent))) or 1.0
+    asymmetry = float(np.max(np.abs(tangent[1] - tangent[2]))) / asymmetry_scale
+
+    stiffness = voigt_stiffness(tangent)
+    t4 = tangent.reshape(2, 2, 2, 2)
+    info = SolverInfo(
+        n_dof=int(index.size),
+        n_pairs_used=n_used,
+        pinned_rod=pinned,
+        regularised=regularised,
+        regularisation=added,
+        residual=residual,
+        unbalanced_force=float(unbalanced),
+        stress_asymmetry=asymmetry,
+        seconds=time.perf_counter() - start,
+    )
+    return LinearResponse(
+        stiffness=stiffness,
+        affine_stiffness=voigt_stiffness(d_g),
+        non_affine_stiffness=voigt_stiffness(non_affine),
+        tangent=t4,
+        stress=stress,
+        e_oed_v=float(stiffness[1, 1]),
+        e_oed_h=float(stiffness[0, 0]),
+        bulk_modulus=float(0.25 * np.sum(stiffness[:2, :2])),
+        pure_shear_modulus=float(
+            0.25 * (stiffness[0, 0] + stiffness[1, 1] - stiffness[0, 1] - stiffness[1, 0])
+        ),
+        simple_shear_modulus=float(-0.5 * (tangent[1, 1] + tangent[2, 1])),
+        voigt_shear_modulus=float(stiffness[2, 2]),
+        n_rattlers=int(np.count_nonzero(~keep_rod)),
+        rattlers=np.flatnonzero(~keep_rod),
+        n_floppy_modes=n_floppy,
+        sliding_contacts=sliding_contacts,
+        include_geometric=include_geometric,
+        solver=info,
+    )
