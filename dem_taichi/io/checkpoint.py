@@ -109,6 +109,9 @@ def save_checkpoint(
             np.savez(stream, **checked, **{META_KEY: np.array(meta_text)})
             stream.flush()
             os.fsync(stream.fileno())
+        mask = os.umask(0)  # mkstemp makes owner-only files; a checkpoint is an ordinary file
+        os.umask(mask)
+        os.chmod(temp, 0o666 & ~mask)
         os.replace(temp, target)
     except BaseException:
         temp.unlink(missing_ok=True)

@@ -3,15 +3,48 @@
 Integer variables keep their integer dtype (a missing integer is the schema's fill value, kept in
 ``encoding["_FillValue"]``); float variables hold NaN where a record lacked them. The history's
 ``stage`` codes are also given as labels in the coordinate ``stage_label``.
+
+A history whose writer is still running is locked by HDF5; the readers then load a copy of the
+file (the records synced so far), so progress can be watched while a run goes on.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
+
+
+def _load(path: Path) -> xr.Dataset:
+    with xr.open_dataset(
+        path, engine="netcdf4", mask_and_scale=False, decode_times=False, cache=False
+    ) as opened:
+        return opened.load()
+
+
+def _load_snapshot(path: Path, attempts: int = 3) -> xr.Dataset:
+    """Load a copy of ``path``: HDF5 locks a file its writer still holds open.
+
+    A copy taken while the writer is in the middle of a sync may be inconsistent, hence the
+    retries.
+    """
+    last_error: OSError | None = None
+    for _ in range(attempts):
+        with tempfile.TemporaryDirectory(prefix="dem_taichi_io_") as folder:
+            copy = Path(folder) / path.name
+            shutil.copyfile(path, copy)
+            try:
+                return _load(copy)
+            except OSError as error:
+                last_error = error
+        time.sleep(0.05)
+    assert last_error is not None
+    raise last_error
 
 
 def _open(path: str | os.PathLike[str], kind: str) -> xr.Dataset:
@@ -19,20 +52,22 @@ def _open(path: str | os.PathLike[str], kind: str) -> xr.Dataset:
     if not target.exists():
         raise FileNotFoundError(f"{kind} file {target} does not exist")
     try:
-        with xr.open_dataset(
-            target, engine="netcdf4", mask_and_scale=False, decode_times=False, cache=False
-        ) as opened:
-            ds = opened.load()
+        ds = _load(target)
     except OSError as error:
-        raise OSError(f"cannot read {kind} file {target}: {error}") from error
-    for name in ds.variables:
+        try:
+            ds = _load_snapshot(target)
+        except OSError:
+            raise OSError(
+                f"cannot read {kind} file {target}: {error} (not a netCDF file, or corrupt)"
+            ) from error
+    for name in list(ds.variables):
         variable = ds[name]
         fill = variable.attrs.pop("_FillValue", None)
         if fill is None:
             continue
-        variable.encoding["_FillValue"] = fill
         if variable.dtype.kind == "f" and not np.isnan(fill):
             ds[name] = variable.where(variable != fill)
+        ds[name].encoding["_FillValue"] = fill
     return ds
 
 

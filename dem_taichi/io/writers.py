@@ -152,6 +152,10 @@ def _coerce(var: Variable, value: Any) -> Any:
     return float(array)
 
 
+def _is_finite_number(value: Any) -> bool:
+    return isinstance(value, int | float) and math.isfinite(value)
+
+
 def _read_records(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Raw arrays (no masking) and global attributes of a history file."""
     with netCDF4.Dataset(path, "r") as dataset:
@@ -228,14 +232,17 @@ class HistoryWriter:
                 f"cannot resume {self.path}: its variables differ from the schema "
                 f"(missing in file: {missing}; not in schema: {extra})"
             )
-        n_keep = len(arrays["step"]) if "step" in arrays else len(next(iter(arrays.values())))
+        n_keep = len(next(iter(arrays.values()))) if arrays else 0
+        if "step" in arrays:
+            steps = arrays["step"]
+            given = np.flatnonzero(steps != self.variables["step"].fill_value)
+            if given.size:  # drop a last record cut short by a kill (its `step` is written last)
+                n_keep = int(given[-1]) + 1
         if after_step is not None:
             if "step" not in arrays:
                 raise ValueError("resume_after_step needs a 'step' variable in the history")
-            steps = arrays["step"]
-            fill = self.variables["step"].fill_value
-            beyond = np.flatnonzero((steps > after_step) & (steps != fill))
-            n_keep = int(beyond[0]) if beyond.size else len(steps)
+            beyond = np.flatnonzero(arrays["step"][:n_keep] > after_step)
+            n_keep = int(beyond[0]) if beyond.size else n_keep
         merged = dict(old_attrs)
         new = global_attrs(attrs)
         old_history = str(old_attrs.get("history", ""))
@@ -259,6 +266,7 @@ class HistoryWriter:
                 dataset.sync()
             finally:
                 dataset.close()
+            os.chmod(temp, self.path.stat().st_mode & 0o777)
             os.replace(temp, self.path)
         except BaseException:
             temp.unlink(missing_ok=True)
@@ -269,7 +277,8 @@ class HistoryWriter:
         """Append one record; returns its index along ``time``.
 
         Unknown names fail (listing them and the known ones); names left out get the fill value
-        (NaN for floats). Flag variables (``stage``) take the code or the label.
+        (NaN for floats), except ``time``, the coordinate, which every record must give. Flag
+        variables (``stage``) take the code or the label.
         """
         if self._closed:
             raise RuntimeError(f"history {self.path} is closed")
@@ -279,6 +288,11 @@ class HistoryWriter:
                 f"unknown history variable(s) {unknown}; known: {sorted(self.variables)}"
             )
         record = {name: _coerce(self.variables[name], value) for name, value in frame.items()}
+        if "time" in self.variables and not _is_finite_number(record.get("time")):
+            raise ValueError(
+                "every history record needs a finite 'time': it is the coordinate of the file "
+                f"(CF: no missing coordinate values); got {frame.get('time')!r}"
+            )
         index = self.n_records
         self._buffer.append(record)
         self.n_records = index + 1
@@ -393,12 +407,20 @@ def _encoding(ds: xr.Dataset, schema: Mapping[str, Variable]) -> dict[str, dict[
     return encoding
 
 
+def _give_default_permissions(path: Path) -> None:
+    """mkstemp makes files readable by their owner only; results are ordinary files (umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(path, 0o666 & ~mask)
+
+
 def _atomic_to_netcdf(path: Path, ds: xr.Dataset, encoding: Mapping[str, Any]) -> None:
     handle, temp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(handle)
     temp = Path(temp_name)
     try:
         ds.to_netcdf(temp, format=FILE_FORMAT, engine="netcdf4", encoding=dict(encoding))
+        _give_default_permissions(temp)
         os.replace(temp, path)
     except BaseException:
         temp.unlink(missing_ok=True)

@@ -207,7 +207,7 @@ def test_attributes_that_netcdf_cannot_hold_fail_naming_the_key(tmp_path):
 def test_history_file_is_cf_shaped(tmp_path):
     path = tmp_path / "h.nc"
     with HistoryWriter(path) as writer:
-        writer.append({"step": 0, "stage": "gas"})
+        writer.append({"step": 0, "time": 0.0, "stage": "gas"})
     with netCDF4.Dataset(path) as raw:
         assert raw.getncattr("Conventions") == "CF-1.11"
         assert raw.dimensions["time"].isunlimited()

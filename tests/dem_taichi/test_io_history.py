@@ -58,8 +58,8 @@ def test_every_history_variable_round_trips_with_its_attributes(tmp_path):
 def test_missing_names_get_fill_values_and_stage_labels_are_accepted(tmp_path):
     path = tmp_path / "history.nc"
     with HistoryWriter(path) as writer:
-        writer.append({"step": 3, "stage": "A_to_C", "mean_stress": 2.0})
-        writer.append({"step": 4, "stage": "relax", "n_contacts": 12})
+        writer.append({"step": 3, "time": 0.5, "stage": "A_to_C", "mean_stress": 2.0})
+        writer.append({"step": 4, "time": 0.75, "stage": "relax", "n_contacts": 12})
     ds = open_history(path)
     assert np.isnan(ds["mean_stress"].values[1]) and ds["mean_stress"].values[0] == 2.0
     fill = ds["n_contacts"].encoding["_FillValue"]
@@ -92,7 +92,7 @@ def test_provenance_attributes_are_stored(tmp_path):
         scene, "cpu", "f64", 7, "python -m dem_taichi run smoke.toml", taichi_version="1.7.4"
     )
     with HistoryWriter(tmp_path / "h.nc", attrs=attrs) as writer:
-        writer.append({"step": 0})
+        writer.append({"step": 0, "time": 0.0})
     ds = open_history(tmp_path / "h.nc")
     for key in ("Conventions", "title", "institution", "source", "history", "dem_unit_system"):
         assert ds.attrs[key], key
@@ -169,10 +169,14 @@ def test_a_killed_writer_leaves_a_readable_file_with_the_synced_records(
     np.testing.assert_array_equal(ds["stage"].values, steps % 3)
 
 
+def record(step: int) -> dict[str, float | int | str]:
+    return {"step": step, "time": step / 4, "mean_stress": step / 8, "stage": "A_to_B"}
+
+
 def write_steps(path: Path, steps, **kwargs) -> None:
     with HistoryWriter(path, **kwargs) as writer:
         for step in steps:
-            writer.append({"step": step, "mean_stress": float(step) / 8, "stage": "A_to_B"})
+            writer.append(record(step))
 
 
 def test_resume_truncates_records_after_the_checkpoint_step(tmp_path):
@@ -181,7 +185,7 @@ def test_resume_truncates_records_after_the_checkpoint_step(tmp_path):
     with HistoryWriter(path, resume=True, resume_after_step=45) as writer:
         assert writer.n_records == 5  # steps 0..40 kept
         for step in range(50, 80, 10):
-            writer.append({"step": step, "mean_stress": float(step) / 8, "stage": "A_to_B"})
+            writer.append(record(step))
     ds = open_history(path)
     np.testing.assert_array_equal(ds["step"].values, np.arange(0, 80, 10))
     np.testing.assert_array_equal(ds["mean_stress"].values, np.arange(0, 80, 10) / 8)
@@ -195,7 +199,7 @@ def test_resume_without_a_step_keeps_every_record_and_appends(tmp_path):
     path = tmp_path / "h.nc"
     write_steps(path, range(4))
     with HistoryWriter(path, resume=True) as writer:
-        writer.append({"step": 4})
+        writer.append(record(4))
     assert open_history(path)["step"].values.tolist() == [0, 1, 2, 3, 4]
 
 
@@ -222,10 +226,66 @@ def test_an_incomplete_last_record_is_dropped_by_the_reader(tmp_path):
     assert ds["step"].values.tolist() == [0, 1, 2]
 
 
+def test_resume_drops_an_incomplete_last_record(tmp_path):
+    import netCDF4
+
+    path = tmp_path / "h.nc"
+    write_steps(path, range(3))
+    with netCDF4.Dataset(path, "a") as dataset:  # a kill in the middle of the 4th record
+        dataset["mean_stress"][3] = 99.0
+    with HistoryWriter(path, resume=True, resume_after_step=7) as writer:
+        assert writer.n_records == 3
+        writer.append(record(8))
+    ds = open_history(path, drop_incomplete=False)
+    assert ds["step"].values.tolist() == [0, 1, 2, 8]
+    assert ds["mean_stress"].values.tolist() == [0, 1 / 8, 2 / 8, 1]
+
+
 def test_history_variables_must_be_along_time_only():
     bad = (Variable("rod_angle", ("rod",), "radian", "angle"),)
     with pytest.raises(ValueError, match="dims"):
         HistoryWriter("unused.nc", variables=bad)
+
+
+def test_every_record_needs_a_finite_time(tmp_path):
+    with HistoryWriter(tmp_path / "h.nc") as writer:
+        with pytest.raises(ValueError, match="'time'"):
+            writer.append({"step": 1})
+        with pytest.raises(ValueError, match="'time'"):
+            writer.append({"step": 1, "time": float("nan")})
+        assert writer.n_records == 0
+
+
+LIVE_WRITER = textwrap.dedent(
+    """
+    import sys, time
+    from dem_taichi.io import HistoryWriter
+    with HistoryWriter(sys.argv[1]) as writer:
+        for step in range(10**6):
+            writer.append({"step": step, "time": 0.5 * step})
+            if step == 30:
+                print("go", flush=True)
+    """
+)
+
+
+def test_a_history_can_be_read_while_its_writer_runs(tmp_path):
+    path = tmp_path / "live.nc"
+    child = subprocess.Popen(
+        [sys.executable, "-c", LIVE_WRITER, str(path)], stdout=subprocess.PIPE, text=True, cwd=ROOT
+    )
+    try:
+        assert child.stdout.readline().strip() == "go"
+        ds = open_history(path)
+        assert child.poll() is None  # the writer was still running
+    finally:
+        child.kill()
+        child.wait()
+        child.stdout.close()
+    n = ds.sizes["time"]
+    assert n >= 31
+    np.testing.assert_array_equal(ds["step"].values, np.arange(n))
+    np.testing.assert_array_equal(ds["time"].values, 0.5 * np.arange(n))
 
 
 def test_history_names_match_the_interfaces_note():
