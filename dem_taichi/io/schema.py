@@ -82,10 +82,10 @@ class Variable:
     dims: tuple[str, ...]
     units: str
     long_name: str
-    dtype: str = "f8"
     definition: str = ""
-    dem_units: str = ""
+    dtype: str = "f8"
     sign_convention: str = ""
+    dem_units: str = ""
     flag_values: tuple[int, ...] = ()
     flag_meanings: tuple[str, ...] = ()
     extra_attrs: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -207,8 +207,8 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         TIME,
         "1",
         "time step index",
-        "i8",
-        "number of integration steps since the start of the run",
+        dtype="i8",
+        definition="number of integration steps since the start of the run",
     ),
     Variable(
         "time",
@@ -223,7 +223,7 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         TIME,
         "1",
         "stage of the virtual experiment",
-        "i4",
+        dtype="i4",
         definition="protocol stage the record belongs to (model.md 1.6)",
         flag_values=tuple(STAGE_CODES.values()),
         flag_meanings=tuple(STAGE_CODES),
@@ -371,7 +371,7 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         TIME,
         "1",
         "number of contacts",
-        "i8",
+        dtype="i8",
         definition="inter-rod disc pairs in contact (overlap delta > 0)",
     ),
     Variable(
@@ -379,7 +379,7 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         TIME,
         "1",
         "number of long-range interacting pairs",
-        "i8",
+        dtype="i8",
         definition="inter-rod disc pairs with a non-zero long-range force (charge product != 0 "
         "or van der Waals term on, and gap g <= g_max), touching pairs included",
     ),
@@ -453,7 +453,7 @@ PROBE_VARIABLES: tuple[Variable, ...] = (
         PROBE,
         "1",
         "label of the probed state",
-        "str",
+        dtype="str",
         definition="e.g. A, B, C or PATH_k for the k-th probe along a path",
     ),
     Variable(
@@ -461,10 +461,10 @@ PROBE_VARIABLES: tuple[Variable, ...] = (
         PROBE,
         "1",
         "stage (path) along which the state lies",
-        "str",
+        dtype="str",
         definition="one of the stage labels: " + " ".join(STAGE_CODES),
     ),
-    Variable("step", PROBE, "1", "time step index of the probed state", "i8"),
+    Variable("step", PROBE, "1", "time step index of the probed state", dtype="i8"),
     Variable(
         "stress_xx",
         PROBE,

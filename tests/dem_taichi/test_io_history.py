@@ -208,7 +208,7 @@ def test_resume_needs_an_existing_file_with_the_same_variables(tmp_path):
         HistoryWriter(tmp_path / "none.nc", resume=True)
     path = tmp_path / "h.nc"
     write_steps(path, range(3))
-    other = (Variable("step", ("time",), "1", "step", "i8"),)
+    other = (Variable("step", ("time",), "1", "step", dtype="i8"),)
     with pytest.raises(ValueError, match="not in schema"):
         HistoryWriter(path, variables=other, resume=True)
 
