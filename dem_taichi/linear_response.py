@@ -50,6 +50,7 @@ drop out as η -> 0 and the flag ``regularised`` is set in :class:`SolverInfo`.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Literal
 
@@ -59,7 +60,15 @@ import scipy.sparse.linalg as sparse_linalg
 
 from dem_taichi import forcelaw
 
-__all__ = ["LinearResponse", "NetworkSnapshot", "SolverInfo", "linear_response", "voigt_stiffness"]
+__all__ = [
+    "LinearResponse",
+    "NetworkMatrices",
+    "NetworkSnapshot",
+    "SolverInfo",
+    "linear_response",
+    "network_matrices",
+    "voigt_stiffness",
+]
 
 
 def _as_array(name: str, value, dtype, shape: tuple) -> np.ndarray:
@@ -405,32 +414,49 @@ def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, slidi
     return k, j_sigma.reshape(n_pairs, 4, 4)
 
 
-def linear_response(
+@dataclass(frozen=True)
+class NetworkMatrices:
+    """Linearised network: dR = -H dq + Γ dG and dσ = D_q dq + D_G dG (flattened xx, xy, yx, yy).
+
+    Attributes:
+        hessian: H (3N, 3N) sparse CSC, -∂R/∂q over rod DOFs (X, Y, θ per rod, rod-major).
+        strain_coupling: Γ (3N, 4), ∂R/∂G at fixed non-affine DOFs.
+        stress_dof: D_q (4, 3N), ∂σ/∂q.
+        stress_strain: D_G (4, 4), ∂σ/∂G of the affine deformation (area and branch terms in).
+        stress: σ (2, 2) of the snapshot.
+        used_pairs: (P,) bool, active pairs between kept rods (the ones assembled).
+        kept_rods: (N,) bool, rods not pruned as rattlers.
+        sliding_free: (P,) bool, contacts treated as sliding on the Coulomb cap.
+        unbalanced_force: max |R| / mean |f| over active pairs (0 = exact equilibrium).
+    """
+
+    hessian: sparse.csc_matrix
+    strain_coupling: np.ndarray
+    stress_dof: np.ndarray
+    stress_strain: np.ndarray
+    stress: np.ndarray
+    used_pairs: np.ndarray
+    kept_rods: np.ndarray
+    sliding_free: np.ndarray
+    unbalanced_force: float
+
+
+def network_matrices(
     snapshot: NetworkSnapshot,
     sliding_contacts: Literal["free", "stuck"] = "free",
     include_geometric: bool = True,
-    regularisation: float = 1e-10,
-) -> LinearResponse:
-    """Zero-amplitude stiffness dσ/dε of a network in force-and-torque equilibrium.
+    prune_rattlers: bool = True,
+) -> NetworkMatrices:
+    """Assemble H, Γ, D_q, D_G of a snapshot (see the module docstring for every term).
 
     Args:
-        snapshot: the network (positions, pairs, tangential springs, sliding flags).
-        sliding_contacts: "free": contacts at the Coulomb cap (snapshot flag, or |k_t ξ| above the
-            cap) keep their tangential force on the cap μ k_n δ while the contact keeps sliding
-            (the loading branch); "stuck": every contact, sliding or not, responds with its spring
-            k_t (the reversal/unloading branch).
-        include_geometric: keep the pre-stress terms (needed for the exact dσ/dε).
-        regularisation: relative η used only if the reduced H is exactly singular.
-
-    Returns: :class:`LinearResponse`. See the module docstring for the method.
+        snapshot: the network.
+        sliding_contacts: "free" or "stuck", as in :func:`linear_response`.
+        include_geometric: keep the pre-stress terms.
+        prune_rattlers: drop rods with at most one active pair (iteratively) and their pairs.
     """
-    import time
-
     if sliding_contacts not in ("free", "stuck"):
         raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
-    if not (np.isfinite(regularisation) and regularisation > 0.0):
-        raise ValueError(f"regularisation = {regularisation!r}: need a finite value > 0")
-    start = time.perf_counter()
     pairs = forcelaw.pair_forces(snapshot)
     n_rods = snapshot.n_rods
     n_s = snapshot.n_spheres
@@ -448,7 +474,10 @@ def linear_response(
         else 0.0
     )
 
-    keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
+    if prune_rattlers:
+        keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
+    else:
+        keep_rod = np.ones(n_rods, dtype=bool)
     used = active & keep_rod[rod_i] & keep_rod[rod_j]
     flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
@@ -491,6 +520,52 @@ def linear_response(
         -geometric * np.outer(stress.ravel(), [1.0, 0.0, 0.0, 1.0])
         + np.einsum("pak,pkc->ac", j_sigma, w_strain) / area
     )
+    return NetworkMatrices(
+        hessian=hessian,
+        strain_coupling=gamma,
+        stress_dof=d_q,
+        stress_strain=d_g,
+        stress=stress,
+        used_pairs=used,
+        kept_rods=keep_rod,
+        sliding_free=sliding_free,
+        unbalanced_force=float(unbalanced),
+    )
+
+
+def linear_response(
+    snapshot: NetworkSnapshot,
+    sliding_contacts: Literal["free", "stuck"] = "free",
+    include_geometric: bool = True,
+    regularisation: float = 1e-10,
+) -> LinearResponse:
+    """Zero-amplitude stiffness dσ/dε of a network in force-and-torque equilibrium.
+
+    Args:
+        snapshot: the network (positions, pairs, tangential springs, sliding flags).
+        sliding_contacts: "free": contacts at the Coulomb cap (snapshot flag, or |k_t ξ| above the
+            cap) keep their tangential force on the cap μ k_n δ while the contact keeps sliding
+            (the loading branch); "stuck": every contact, sliding or not, responds with its spring
+            k_t (the reversal/unloading branch).
+        include_geometric: keep the pre-stress terms (needed for the exact dσ/dε).
+        regularisation: relative η used only if the reduced H is exactly singular.
+
+    Returns: :class:`LinearResponse`. See the module docstring for the method.
+    """
+    if not (np.isfinite(regularisation) and regularisation > 0.0):
+        raise ValueError(f"regularisation = {regularisation!r}: need a finite value > 0")
+    start = time.perf_counter()
+    matrices = network_matrices(snapshot, sliding_contacts, include_geometric)
+    n_rods = snapshot.n_rods
+    n_s = snapshot.n_spheres
+    used = matrices.used_pairs
+    keep_rod = matrices.kept_rods
+    rod_i = snapshot.pair_i // n_s
+    rod_j = snapshot.pair_j // n_s
+    n_used = int(np.count_nonzero(used))
+    hessian = matrices.hessian
+    gamma = matrices.strain_coupling
+    n_dof_all = 3 * n_rods
 
     # reduced system: kept rods, translation of the best-connected rod pinned
     keep_dof = np.repeat(keep_rod, 3)
@@ -528,13 +603,13 @@ def linear_response(
         residual = float(np.max(np.abs(reduced @ solution - rhs))) / rhs_scale
         relaxation[index] = solution
 
-    non_affine = d_q @ relaxation
+    d_g = matrices.stress_strain
+    non_affine = matrices.stress_dof @ relaxation
     tangent = d_g + non_affine
     asymmetry_scale = float(np.max(np.abs(tangent))) or 1.0
     asymmetry = float(np.max(np.abs(tangent[1] - tangent[2]))) / asymmetry_scale
 
     stiffness = voigt_stiffness(tangent)
-    t4 = tangent.reshape(2, 2, 2, 2)
     info = SolverInfo(
         n_dof=int(index.size),
         n_pairs_used=n_used,
@@ -542,7 +617,7 @@ def linear_response(
         regularised=regularised,
         regularisation=added,
         residual=residual,
-        unbalanced_force=float(unbalanced),
+        unbalanced_force=matrices.unbalanced_force,
         stress_asymmetry=asymmetry,
         seconds=time.perf_counter() - start,
     )
@@ -550,8 +625,8 @@ def linear_response(
         stiffness=stiffness,
         affine_stiffness=voigt_stiffness(d_g),
         non_affine_stiffness=voigt_stiffness(non_affine),
-        tangent=t4,
-        stress=stress,
+        tangent=tangent.reshape(2, 2, 2, 2),
+        stress=matrices.stress,
         e_oed_v=float(stiffness[1, 1]),
         e_oed_h=float(stiffness[0, 0]),
         bulk_modulus=float(0.25 * np.sum(stiffness[:2, :2])),
