@@ -363,8 +363,9 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         TIME,
         "1",
         "mechanical coordination number Z_m (rattlers removed)",
-        definition="Z_m = 2 C_m / N_m over the non-rattler rods, rattlers being rods with fewer "
-        "than 2 touching inter-rod disc pairs (removed with their contacts); 0 when N_m = 0",
+        definition="Z_m = 2 C_m / N_m: touching inter-rod disc pairs per rod over the N_m "
+        "non-rattler rods, rattlers being rods with fewer than 2 touching disc pairs, removed "
+        "with their contacts iteratively until none is left; 0 when N_m = 0",
     ),
     Variable(
         "n_contacts",
@@ -569,8 +570,18 @@ PROBE_VARIABLES: tuple[Variable, ...] = (
         "1",
         "2D shear modulus, linear response",
         dem_units="force/length",
-        definition="G = d sigma_xy / d gamma_xy = C_33 (simple shear, engineering strain "
-        "gamma_xy = 2 epsilon_xy)",
+        definition="G = d sigma_xy / d gamma_xy = C_33 (symmetric shear strain "
+        "epsilon_xy = epsilon_yx = gamma_xy / 2, sigma_xy the symmetric part)",
+        sign_convention=COMPRESSION_POSITIVE,
+    ),
+    Variable(
+        "pure_shear_modulus_linear",
+        PROBE,
+        "1",
+        "2D pure-shear modulus, linear response",
+        dem_units="force/length",
+        definition="G_q = 1/2 d(sigma_xx - sigma_yy) / d(epsilon_xx - epsilon_yy) "
+        "= (C_11 + C_22 - C_12 - C_21) / 4 (the modulus of q in 2D)",
         sign_convention=COMPRESSION_POSITIVE,
     ),
     Variable(
@@ -609,6 +620,22 @@ PROBE_VARIABLES: tuple[Variable, ...] = (
         dem_units="force/length",
         definition="secant (sigma_xx(+d) - sigma_xx(-d)) / (2 d) with epsilon_yy fixed, relaxed",
         sign_convention=COMPRESSION_POSITIVE,
+    ),
+    Variable(
+        "e_oed_v_elastic_limit",
+        PROBE,
+        "1",
+        "largest vertical probe amplitude on the elastic plateau",
+        definition="largest amplitude of e_oed_v_of_amplitude on the plateau picked by the rule "
+        "in the dataset attribute plateau_rule",
+    ),
+    Variable(
+        "e_oed_h_elastic_limit",
+        PROBE,
+        "1",
+        "largest horizontal probe amplitude on the elastic plateau",
+        definition="largest amplitude of e_oed_h_of_amplitude on the plateau picked by the rule "
+        "in the dataset attribute plateau_rule",
     ),
 )
 
