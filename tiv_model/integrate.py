@@ -392,7 +392,7 @@ def _strain_step(state, deps, params, options, settings, depth=0):
         return _strain_step(mid, half, params, options, settings, depth + 1)
 
 
-def _mixed_step(state: State, control: Control, params, options, settings) -> State:
+def _mixed_step(state: State, control: Control, params, options, settings, guess=None) -> State:
     mask = np.array(control.stress_controlled, dtype=bool)
     deps = np.where(mask, 0.0, np.asarray(control.strain_increment, dtype=float))
     if not np.any(mask):
@@ -400,9 +400,12 @@ def _mixed_step(state: State, control: Control, params, options, settings) -> St
     target = np.asarray(control.stress_target, dtype=float)
     u = np.flatnonzero(mask)
     kn = np.flatnonzero(~mask)
-    d = stiffness(state.elastic_strain, state.specific_volume, state.fabric, params, options)
-    rhs = target[u] - state.stress[u] - d[np.ix_(u, kn)] @ deps[kn]
-    deps[u] = np.linalg.solve(d[np.ix_(u, u)], rhs)
+    if guess is not None and np.all(np.isfinite(guess)):
+        deps[u] = np.asarray(guess, dtype=float)[u]
+    else:
+        d = stiffness(state.elastic_strain, state.specific_volume, state.fabric, params, options)
+        rhs = target[u] - state.stress[u] - d[np.ix_(u, kn)] @ deps[kn]
+        deps[u] = np.linalg.solve(d[np.ix_(u, u)], rhs)
     scale = settings.stress_tolerance * max(state.mean_stress, float(np.max(np.abs(target))), 1.0)
     best = math.inf
     last_good = None
@@ -463,23 +466,28 @@ def advance(
     params: Parameters = TABLE1,
     options: ModelOptions = DEFAULT_OPTIONS,
     settings: SolverSettings = DEFAULT_SETTINGS,
+    guess=None,
     _depth: int = 0,
 ) -> State:
     """Integrate one loading increment (mixed control), halving it on failure.
+
+    ``guess`` is an optional Mandel strain increment used as the starting value of the
+    stress-controlled components (e.g. the previous increment scaled); by default the elastic
+    stiffness gives it.
 
     Raises :class:`ConvergenceError`, :class:`SpecificVolumeBelowOneError` or
     :class:`NonConvexEnergyError` with the state at which it happened.
     """
     try:
-        new = _mixed_step(state, control, params, options, settings)
+        new = _mixed_step(state, control, params, options, settings, guess)
     except ConvergenceError as exc:
         if _depth >= settings.max_halvings:
             raise ConvergenceError(
                 f"increment failed after {_depth} halvings ({exc.args[0]})", state
             ) from exc
         first, second = control.split(state)
-        mid = advance(state, first, params, options, settings, _depth + 1)
-        return advance(mid, second, params, options, settings, _depth + 1)
+        mid = advance(state, first, params, options, settings, None, _depth + 1)
+        return advance(mid, second, params, options, settings, None, _depth + 1)
     _check_admissible(new, params)
     return new
 
