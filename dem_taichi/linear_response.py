@@ -42,10 +42,13 @@ Zero modes: (i) rods with at most one active pair are pruned iteratively (exact:
 such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
 relaxed response; a rod with no pair is a rattler); (ii) the two global translations are removed
 exactly by pinning the translation of the best-connected rod (every pair exerts equal and opposite
-forces, so the rows of the pinned DOFs follow from the others); (iii) the reduced H is factorised
-with SuperLU; if it is exactly singular (other floppy modes), H + η s I is used with
-η = ``regularisation`` (relative) and s = max|diag H|: modes that the strain does not excite
-drop out as η -> 0 and the flag ``regularised`` is set in :class:`SolverInfo`.
+forces, so the rows of the pinned DOFs follow from the others); DOFs with an all-zero row and
+column of H (e.g. the spin of single-disc bodies without friction) are left out; (iii) the
+reduced H is factorised with SuperLU; if it is exactly singular (other floppy modes),
+H + η s I is used with η = ``regularisation`` (relative) and s = max|diag H|: modes that the
+strain does not excite drop out as η -> 0 and the flag ``regularised`` is set in
+:class:`SolverInfo` (modes that it does excite make the response blow up like 1/η: such a
+network is not rigid, and the residual/size of the result shows it).
 """
 
 from __future__ import annotations
@@ -227,7 +230,9 @@ class SolverInfo:
     """How the non-affine relaxation was solved.
 
     Attributes:
-        n_dof: rod DOFs of the reduced system (3 per kept rod minus 2 pinned translations).
+        n_dof: rod DOFs of the reduced system (3 per kept rod minus 2 pinned translations,
+            minus decoupled DOFs).
+        n_decoupled_dof: DOFs of kept rods with an all-zero row and column of H, left out.
         n_pairs_used: active pairs between kept rods.
         pinned_rod: rod whose translation was fixed to remove the global translations (-1: none).
         regularised: True if H was exactly singular and H + η s I was solved instead.
@@ -240,6 +245,7 @@ class SolverInfo:
     """
 
     n_dof: int
+    n_decoupled_dof: int
     n_pairs_used: int
     pinned_rod: int
     regularised: bool
@@ -576,6 +582,14 @@ def linear_response(
         )
         pinned = int(np.argmax(count))
         keep_dof[3 * pinned : 3 * pinned + 2] = False
+    # DOFs with an all-zero row and column of H are decoupled (e.g. the spin of a single-disc
+    # "rod" without tangential forces): their displacement is arbitrary and changes nothing.
+    absolute = abs(hessian)
+    coupled = (np.asarray(absolute.sum(axis=0)).ravel() > 0.0) | (
+        np.asarray(absolute.sum(axis=1)).ravel() > 0.0
+    )
+    n_decoupled = int(np.count_nonzero(keep_dof & ~coupled))
+    keep_dof &= coupled
     index = np.flatnonzero(keep_dof)
     relaxation = np.zeros((n_dof_all, 4))
     regularised = False
@@ -612,6 +626,7 @@ def linear_response(
     stiffness = voigt_stiffness(tangent)
     info = SolverInfo(
         n_dof=int(index.size),
+        n_decoupled_dof=n_decoupled,
         n_pairs_used=n_used,
         pinned_rod=pinned,
         regularised=regularised,
