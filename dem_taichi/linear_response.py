@@ -42,9 +42,9 @@ Zero modes: (i) rods with at most one active pair are pruned iteratively (exact:
 such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
 relaxed response; a rod with no pair is a rattler); (ii) the two global translations are removed
 exactly by pinning the translation of the best-connected rod (every pair exerts equal and opposite
-forces, so the rows of the pinned DOFs follow from the others); DOFs with an all-zero row and
-column of H (e.g. the spin of single-disc bodies without friction) are left out; (iii) the
-reduced H is factorised with SuperLU; if it is exactly singular (other floppy modes),
+forces, so the rows of the pinned DOFs follow from the others); DOFs with a zero row and
+column of H (below 1e-12 of the largest row sum; e.g. the spin of single-disc bodies without
+friction) are left out; (iii) the reduced H is factorised with SuperLU; if it is exactly singular (other floppy modes),
 H + η s I is used with η = ``regularisation`` (relative) and s = max|diag H|: modes that the
 strain does not excite drop out as η -> 0 and the flag ``regularised`` is set in
 :class:`SolverInfo` (modes that it does excite make the response blow up like 1/η: such a
@@ -582,12 +582,14 @@ def linear_response(
         )
         pinned = int(np.argmax(count))
         keep_dof[3 * pinned : 3 * pinned + 2] = False
-    # DOFs with an all-zero row and column of H are decoupled (e.g. the spin of a single-disc
+    # DOFs with a zero row and column of H are decoupled (e.g. the spin of a single-disc
     # "rod" without tangential forces): their displacement is arbitrary and changes nothing.
+    # "Zero" is 1e-12 of the largest row sum: those terms cancel only to rounding.
     absolute = abs(hessian)
-    coupled = (np.asarray(absolute.sum(axis=0)).ravel() > 0.0) | (
-        np.asarray(absolute.sum(axis=1)).ravel() > 0.0
-    )
+    column_sum = np.asarray(absolute.sum(axis=0)).ravel()
+    row_sum = np.asarray(absolute.sum(axis=1)).ravel()
+    threshold = 1e-12 * (float(row_sum.max()) if row_sum.size else 0.0)
+    coupled = (column_sum > threshold) | (row_sum > threshold)
     n_decoupled = int(np.count_nonzero(keep_dof & ~coupled))
     keep_dof &= coupled
     index = np.flatnonzero(keep_dof)
