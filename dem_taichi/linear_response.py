@@ -41,14 +41,14 @@ C = (1/A)[Born term - Γᵀ H⁻¹ Γ] plus the stress terms.
 Zero modes: (i) rods with at most one active pair are pruned iteratively (exact: in equilibrium
 such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
 relaxed response; a rod with no pair is a rattler); (ii) the two global translations are removed
-exactly by pinning the translation of the best-connected rod (every pair exerts equal and opposite
-forces, so the rows of the pinned DOFs follow from the others); DOFs with a zero row and
-column of H (below 1e-12 of the largest row sum; e.g. the spin of single-disc bodies without
-friction) are left out; (iii) the reduced H is factorised with SuperLU; if it is exactly singular (other floppy modes),
-H + η s I is used with η = ``regularisation`` (relative) and s = max|diag H|: modes that the
-strain does not excite drop out as η -> 0 and the flag ``regularised`` is set in
-:class:`SolverInfo` (modes that it does excite make the response blow up like 1/η: such a
-network is not rigid, and the residual/size of the result shows it).
+exactly by pinning the translation of the best-connected rod (every pair exerts equal and
+opposite forces, so the rows of the pinned DOFs follow from the others); DOFs with a zero row
+and column of H (below 1e-12 of the largest row sum, e.g. the spin of single-disc bodies without
+friction) are left out; (iii) the reduced H is factorised with SuperLU; if it is exactly
+singular (other floppy modes), H + η s I is used with η = ``regularisation`` (relative) and
+s = max|diag H|: modes that the strain does not excite drop out as η -> 0 and the flag
+``regularised`` is set in :class:`SolverInfo` (modes that it does excite make the response blow
+up like 1/η: such a network is not rigid, and the residual/size of the result shows it).
 """
 
 from __future__ import annotations
