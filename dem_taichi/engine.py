@@ -1,0 +1,852 @@
+"""The DEM engine: plain-Python orchestration of the Taichi kernels.
+
+Public API
+----------
+``Simulation(scene, arch="cpu", precision="f64", deterministic=False, execution=None)``
+    Builds the rods (a random gas from the scene, or ``initial=GasState``), allocates the arrays,
+    builds the neighbour list and computes the forces.
+``sim.run(n_steps, control=None, output_every=None, writer=None, progress=False, callback=None)``
+    Advances ``n_steps`` time steps under a :class:`CellControl` (default: the cell held fixed);
+    ``writer`` (e.g. :class:`dem_taichi.io.HistoryWriter`) gets ``sim.measure()`` every
+    ``output_every`` steps and at the end; returns the last measures (a dict).
+``sim.measure() -> dict``
+    The history variables of ``dem_taichi.io.schema`` (stress, p, q, v, fabric, Z, energies...).
+``sim.snapshot() -> NetworkSnapshot``
+    The interacting network for the linear-response probes.
+``sim.get_state() / sim.set_state(state)``
+    Numpy copies of the full state (tangential springs and neighbour lists included); restoring
+    a state continues the run bit for bit. Use them to probe copies of a state.
+``sim.save_checkpoint(path)`` / ``Simulation.from_checkpoint(path, arch=None, precision=None)``
+``sim.set_parameters(k_n=..., mu=..., local_damping=..., time_step=...)``
+    Runtime parameters (no recompilation).
+``sim.set_strain_reference()``
+    Resets L0 of the logarithmic strains to the current cell.
+
+Execution
+---------
+``execution="serial"`` runs ``steps_per_call`` fused steps in one kernel call, on one thread
+(launch overhead paid once per call: the fastest at the study's size on a CPU, measured in
+benchmarks/bench_dem.py); it is bitwise deterministic. ``"parallel"`` launches three kernels per
+step, parallel over rods and discs with atomic force scatter (for GPUs / very large N; not
+bitwise reproducible). ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` forces
+the serial path.
+
+Cell control
+------------
+Each axis is strain-controlled (prescribed rate, compression positive, 0 = fixed) or
+stress-controlled by a servo, evaluated every ``steps_per_call`` steps:
+ε̇ = ε̇_max · clip(servo_gain · (σ_target − σ)/(0.01 σ_target), −1, 1), with the rate cap
+ε̇_max = I_max / (d sqrt(ρ/p_ref)) from the inertial-number limit (p_ref = max(σ_target, p)).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
+from dem_taichi.kernels import layout as L
+from dem_taichi.runtime import ensure_runtime
+from dem_taichi.scene import GasState, generate_gas, rod_geometry, species_parameters
+
+__all__ = [
+    "AxisControl",
+    "CellControl",
+    "Physics",
+    "Simulation",
+    "BlowUpError",
+    "CapacityError",
+]
+
+
+class BlowUpError(RuntimeError):
+    """The run became unstable; the message names the likely cause and the fix."""
+
+
+class CapacityError(RuntimeError):
+    """An array capacity could not be grown; the message says what to set."""
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing)."""
+
+    friction: bool
+    long_range: bool
+    vdw: bool
+
+
+@dataclass(frozen=True)
+class AxisControl:
+    """Control of one cell axis: ``mode`` "strain_rate" (value = ε̇, compression positive) or
+    "stress" (value = σ target, compression positive, > 0)."""
+
+    mode: str = "strain_rate"
+    value: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("strain_rate", "stress"):
+            raise ValueError(f"mode = {self.mode!r}: allowed values are strain_rate | stress")
+        if not math.isfinite(self.value):
+            raise ValueError(f"control value must be finite, got {self.value}")
+        if self.mode == "stress" and self.value <= 0:
+            raise ValueError(f"stress target must be > 0 (compression positive), got {self.value}")
+
+
+@dataclass(frozen=True)
+class CellControl:
+    """Per-axis cell control plus the stage label written with the history records."""
+
+    x: AxisControl = field(default_factory=AxisControl)
+    y: AxisControl = field(default_factory=AxisControl)
+    stage: str = "other"
+
+    @classmethod
+    def fixed(cls, stage: str = "relax") -> CellControl:
+        return cls(AxisControl("strain_rate", 0.0), AxisControl("strain_rate", 0.0), stage)
+
+    @classmethod
+    def strain_rate(
+        cls, rate_x: float, rate_y: float | None = None, stage: str = "other"
+    ) -> CellControl:
+        rate_y = rate_x if rate_y is None else rate_y
+        return cls(AxisControl("strain_rate", rate_x), AxisControl("strain_rate", rate_y), stage)
+
+    @classmethod
+    def stress(
+        cls, stress_x: float, stress_y: float | None = None, stage: str = "other"
+    ) -> CellControl:
+        stress_y = stress_x if stress_y is None else stress_y
+        return cls(AxisControl("stress", stress_x), AxisControl("stress", stress_y), stage)
+
+
+_PARAMETER_INDEX = {
+    "time_step": L.P_DT,
+    "k_n": L.P_KN,
+    "gamma_n": L.P_GN,
+    "k_t": L.P_KT,
+    "gamma_t": L.P_GT,
+    "mu": L.P_MU,
+    "local_damping": L.P_ALPHA,
+}
+
+_ARRAY_NAMES = (
+    "pos", "angle", "vel", "omega", "force", "torque", "ref_pos", "ref_angle", "offsets",
+    "disc_x", "disc_off", "nbr", "nbr_xi", "nbr_count", "old_nbr", "old_xi", "old_count",
+    "cell_count", "cell_start", "cell_items", "disc_cell", "charge", "pair_table", "cell",
+    "params", "flags",
+)  # fmt: skip
+
+
+def _pair_table(scene: Scene) -> np.ndarray:
+    """(n_s, n_s, 3): signed F_max, signed k_a and range g_max of each species pair.
+
+    Pair values are harmonic means 2ab/(a+b) of the two discs' species values; s = c_i c_j.
+    """
+    charge, f_max, k_a = species_parameters(scene)
+    n = len(charge)
+    table = np.zeros((n, n, 3))
+    for a in range(n):
+        for b in range(n):
+            s = charge[a] * charge[b]
+            f = 2 * f_max[a] * f_max[b] / (f_max[a] + f_max[b])
+            k = 2 * k_a[a] * k_a[b] / (k_a[a] + k_a[b])
+            table[a, b] = (s * f, s * k, f / k) if s != 0 else (0.0, 0.0, f / k)
+    return table
+
+
+class Simulation:
+    """A periodic 2D assembly of rigid rods of discs (see the module docstring)."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: str = "cpu",
+        precision: str = "f64",
+        deterministic: bool = False,
+        execution: str | None = None,
+        initial: GasState | None = None,
+        neighbour_capacity: int | None = None,
+    ) -> None:
+        self.scene = scene
+        self.runtime = ensure_runtime(arch, precision)
+        self.arch, self.precision, self.deterministic = arch, precision, deterministic
+        execution = execution or scene.integration.execution
+        if execution not in ("auto", "serial", "parallel"):
+            raise ValueError(f"execution = {execution!r}: allowed values are auto|serial|parallel")
+        if deterministic:
+            execution = "serial"
+        elif execution == "auto":
+            execution = "serial" if arch == "cpu" else "parallel"
+        self.execution = execution
+        self.geometry = rod_geometry(scene)
+        charge, _, _ = species_parameters(scene)
+        self.charge = charge
+        lr_on = scene.long_range.enabled and bool(np.any(charge != 0))
+        vdw_on = scene.van_der_waals.enabled and bool(np.any(charge != 0))
+        friction_on = scene.contact.friction and scene.contact.k_t > 0
+        self.physics = Physics(friction=friction_on, long_range=lr_on, vdw=vdw_on)
+        self.n_rods = scene.particles.n_rods
+        self.n_discs = self.n_rods * self.geometry.n_spheres
+        self._real = self.runtime.numpy_real
+        self._stage = "other"
+        self._rates = np.zeros(2)
+        self._control = CellControl.fixed()
+        self._last_stress: np.ndarray | None = None
+        self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
+        self.n_rebuild_calls = 0
+        gas = initial if initial is not None else generate_gas(scene)
+        self.cutoff = self._cutoff()
+        self.list_radius = self.cutoff + scene.integration.skin
+        capacity = neighbour_capacity or self._initial_capacity()
+        self._allocate(capacity, gas.cell_lengths)
+        self._upload_gas(gas)
+        self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
+        self.step = 0
+        self._prime()
+
+    # ------------------------------------------------------------------------------------------
+    # set-up
+    def _cutoff(self) -> float:
+        d = self.geometry.diameter
+        reach = 0.0
+        if self.physics.long_range:
+            table = _pair_table(self.scene)
+            reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
+        if self.physics.vdw:
+            reach = max(reach, self.scene.van_der_waals.f_max / self.scene.van_der_waals.k)
+        return d + reach
+
+    def _initial_capacity(self) -> int:
+        # half list: about half the discs within r_list of a disc at the densest packing
+        r = self.list_radius / self.geometry.diameter
+        return int(2.2 * r * r) + 6
+
+    def _allocate(self, capacity: int, cell_lengths: np.ndarray) -> None:
+        import taichi as ti
+
+        real = self.runtime.real
+        n, m, ns = self.n_rods, self.n_discs, self.geometry.n_spheres
+        nd = ti.ndarray
+        self.capacity = int(capacity)
+        cells_axis = int(max(cell_lengths) / self.list_radius) + 2
+        self.a: dict[str, Any] = {
+            "pos": nd(real, (n, 2)),
+            "angle": nd(real, (n,)),
+            "vel": nd(real, (n, 2)),
+            "omega": nd(real, (n,)),
+            "force": nd(real, (n, 2)),
+            "torque": nd(real, (n,)),
+            "ref_pos": nd(real, (n, 2)),
+            "ref_angle": nd(real, (n,)),
+            "offsets": nd(real, (ns,)),
+            "disc_x": nd(real, (m, 2)),
+            "disc_off": nd(real, (m, 2)),
+            "nbr": nd(ti.i32, (m, self.capacity)),
+            "nbr_xi": nd(real, (m, self.capacity)),
+            "nbr_count": nd(ti.i32, (m,)),
+            "old_nbr": nd(ti.i32, (m, self.capacity)),
+            "old_xi": nd(real, (m, self.capacity)),
+            "old_count": nd(ti.i32, (m,)),
+            "cell_count": nd(ti.i32, (cells_axis, cells_axis)),
+            "cell_start": nd(ti.i32, (cells_axis, cells_axis)),
+            "cell_items": nd(ti.i32, (m,)),
+            "disc_cell": nd(ti.i32, (m,)),
+            "charge": nd(ti.i32, (ns,)),
+            "pair_table": nd(real, (ns, ns, 3)),
+            "cell": nd(real, (L.N_CELL,)),
+            "params": nd(real, (L.N_PARAMS,)),
+            "flags": nd(ti.i32, (L.N_FLAGS,)),
+            "measures": nd(real, (L.N_MEASURES,)),
+            "rod_contacts": nd(ti.i32, (n,)),
+            "pair_out": nd(real, (m, self.capacity, 4)),
+            "pair_flags": nd(ti.i32, (m, self.capacity)),
+        }
+        self.a["offsets"].from_numpy(self.geometry.offsets.astype(self._real))
+        self.a["charge"].from_numpy(self.charge.astype(np.int32))
+        self.a["pair_table"].from_numpy(_pair_table(self.scene).astype(self._real))
+        for name in ("nbr_count", "old_count"):
+            self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
+        self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
+        self.a["nbr_xi"].from_numpy(np.zeros((m, self.capacity), dtype=self._real))
+        self.a["params"].from_numpy(self._default_params())
+
+    def _default_params(self) -> np.ndarray:
+        s, geo = self.scene, self.geometry
+        p = np.zeros(L.N_PARAMS)
+        p[L.P_DT] = s.time_step
+        p[L.P_KN] = s.contact.k_n
+        p[L.P_GN] = s.gamma_n
+        p[L.P_KT] = s.contact.k_t if self.physics.friction else 0.0
+        p[L.P_GT] = s.contact.gamma_t
+        p[L.P_MU] = s.contact.mu
+        p[L.P_ALPHA] = s.integration.local_damping
+        p[L.P_MASS] = geo.mass
+        p[L.P_INERTIA] = geo.inertia
+        p[L.P_DIAM] = geo.diameter
+        p[L.P_RLIST] = self.list_radius
+        p[L.P_SKIN] = s.integration.skin
+        p[L.P_VDW_F] = s.van_der_waals.f_max
+        p[L.P_VDW_K] = s.van_der_waals.k
+        p[L.P_MAX_OFFSET] = geo.max_offset
+        p[L.P_MAX_OVERLAP] = s.integration.max_overlap * geo.diameter
+        p[L.P_REACH] = geo.length + self.list_radius
+        p[L.P_CUT] = self.cutoff
+        return p.astype(self._real)
+
+    def _upload_gas(self, gas: GasState) -> None:
+        cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
+        self._check_cell(cell_lengths)
+        reduced = np.asarray(gas.position, dtype=float) / cell_lengths
+        self.a["pos"].from_numpy(reduced.astype(self._real))
+        self.a["angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
+        self.a["vel"].from_numpy(np.asarray(gas.velocity, dtype=self._real))
+        self.a["omega"].from_numpy(np.asarray(gas.angular_velocity, dtype=self._real))
+        self.a["ref_pos"].from_numpy(reduced.astype(self._real))
+        self.a["ref_angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
+        cell = np.zeros(L.N_CELL)
+        cell[[L.C_LX, L.C_LY]] = cell_lengths
+        cell[[L.C_LBX, L.C_LBY]] = cell_lengths
+        self.a["cell"].from_numpy(cell.astype(self._real))
+        flags = np.zeros(L.N_FLAGS, dtype=np.int32)
+        flags[L.F_FORCE_REBUILD] = 1
+        self.a["flags"].from_numpy(flags)
+
+    def _check_cell(self, cell_lengths: np.ndarray) -> None:
+        reach = self.geometry.length + self.list_radius
+        if np.min(cell_lengths) < 2.0 * self.list_radius + self.geometry.length:
+            raise CapacityError(
+                f"cell lengths {np.round(cell_lengths, 4).tolist()} are too small for the minimum "
+                f"image with rods of length {self.geometry.length} and list radius "
+                f"{self.list_radius:.3g} (need > {2 * self.list_radius + self.geometry.length:.3g}"
+                f"; reach {reach:.3g}): use more rods ([particles] n_rods) or a smaller "
+                "[integration] skin"
+            )
+
+    def _args(self) -> list:
+        return [self.a[name] for name in _ARRAY_NAMES]
+
+    def recompute_forces(self) -> None:
+        """Recompute forces/torques from the current positions, velocities and springs (ξ kept)."""
+        self._prime()
+
+    def _prime(self) -> None:
+        from dem_taichi.kernels.step import prime_forces
+
+        for _ in range(8):
+            prime_forces(self.physics, *self._args())
+            if not self._handle_flags(0):
+                return
+        raise CapacityError("could not build the neighbour list")  # pragma: no cover
+
+    # ------------------------------------------------------------------------------------------
+    # flags, capacity growth, blow-up
+    def _handle_flags(self, step_offset: int) -> bool:
+        """Check kernel flags; grow capacity on overflow (True: repeat), raise on blow-up."""
+        flags = self.a["flags"].to_numpy()
+        if flags[L.F_BLOWUP]:
+            self._raise_blowup(flags, step_offset)
+        if flags[L.F_OVERFLOW]:
+            needed = int(flags[L.F_NEEDED])
+            self._grow(int(needed * 1.25) + 2)
+            flags = self.a["flags"].to_numpy()
+            flags[L.F_OVERFLOW] = 0
+            flags[L.F_STOP] = 0
+            self.a["flags"].from_numpy(flags)
+            return True
+        return False
+
+    def _grow(self, capacity: int) -> None:
+        import taichi as ti
+
+        limit = 4096
+        if capacity > limit:
+            raise CapacityError(
+                f"a disc has {capacity} list neighbours (limit {limit}): the packing or the "
+                "list radius is unphysical; reduce [integration] skin or the long-range range "
+                "(f_max / k_a)"
+            )
+        real = self.runtime.real
+        m = self.n_discs
+        for name, dtype in (("nbr", ti.i32), ("nbr_xi", real), ("old_nbr", ti.i32),
+                            ("old_xi", real)):  # fmt: skip
+            old = self.a[name].to_numpy()
+            new = np.zeros((m, capacity), dtype=old.dtype)
+            new[:, : old.shape[1]] = old
+            self.a[name] = ti.ndarray(dtype, (m, capacity))
+            self.a[name].from_numpy(new)
+        self.a["pair_out"] = ti.ndarray(real, (m, capacity, 4))
+        self.a["pair_flags"] = ti.ndarray(ti.i32, (m, capacity))
+        self.capacity = capacity
+
+    def _raise_blowup(self, flags: np.ndarray, step_offset: int) -> None:
+        code, index = int(flags[L.F_BLOWUP]), int(flags[L.F_BLOWUP_INDEX])
+        step = self.step + step_offset + int(flags[L.F_STEPS])
+        safety = self.scene.integration.dt_safety
+        fix = f"reduce [integration] dt_safety from {safety:g} to <= {round(safety * 0.67, 3):g}"
+        if code == L.BLOWUP_NONFINITE:
+            raise BlowUpError(
+                f"non-finite position or velocity of rod {index} at step {step}: the time step is "
+                f"too large for the stiffest interaction or a parameter is invalid; {fix}"
+            )
+        bound = self.scene.integration.max_overlap
+        raise BlowUpError(
+            f"overlap beyond the bound max_overlap = {bound:g} d at disc {index}, step {step}: "
+            f"contacts are too soft for the loading or the time step is too large; {fix}, lower "
+            "the strain rate ([control] inertial_number_max or compression_strain_rate) or raise "
+            "[contact] k_n"
+        )
+
+    def _check_kinetic_energy(self) -> None:
+        v = self.a["vel"].to_numpy().astype(float)
+        w = self.a["omega"].to_numpy().astype(float)
+        ke = 0.5 * self.geometry.mass * np.sum(v * v) + 0.5 * self.geometry.inertia * np.sum(w * w)
+        limit = self.scene.integration.max_kinetic_energy_per_rod * self.n_rods
+        if not math.isfinite(ke) or ke > limit:
+            safety = self.scene.integration.dt_safety
+            raise BlowUpError(
+                f"runaway kinetic energy {ke:.3g} > {limit:.3g} (max_kinetic_energy_per_rod x "
+                f"n_rods) at step {self.step}: the integration is unstable; reduce "
+                f"[integration] dt_safety from {safety:g} to <= {round(safety * 0.67, 3):g} or "
+                "raise local_damping / e_n damping"
+            )
+
+    # ------------------------------------------------------------------------------------------
+    # stepping
+    def _set_rates(self, rates: np.ndarray) -> None:
+        self._rates = np.asarray(rates, dtype=float)
+        params = self.a["params"].to_numpy()
+        params[L.P_RATE_X], params[L.P_RATE_Y] = self._rates
+        self.a["params"].from_numpy(params)
+
+    def _advance(self, n_steps: int) -> None:
+        """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up)."""
+        from dem_taichi.kernels import step as K
+
+        done = 0
+        while done < n_steps:
+            flags = self.a["flags"].to_numpy()
+            flags[L.F_STEPS] = 0
+            self.a["flags"].from_numpy(flags)
+            todo = n_steps - done
+            t0 = _time.perf_counter()
+            if self.execution == "serial":
+                K.run_steps_serial(self.physics, todo, *self._args())
+            else:
+                a = self.a
+                rebuild_args = [a[n] for n in (
+                    "pos", "angle", "ref_pos", "ref_angle", "offsets", "disc_x", "disc_off",
+                    "nbr", "nbr_xi", "nbr_count", "old_nbr", "old_xi", "old_count",
+                    "cell_count", "cell_start", "cell_items", "disc_cell", "cell", "params",
+                    "flags")]  # fmt: skip
+                kick_args = [a[n] for n in (
+                    "pos", "angle", "vel", "omega", "force", "torque", "ref_pos", "ref_angle",
+                    "offsets", "disc_x", "disc_off", "cell", "params", "flags")]  # fmt: skip
+                force_args = [a[n] for n in (
+                    "vel", "omega", "force", "torque", "disc_x", "disc_off", "offsets", "nbr",
+                    "nbr_xi", "nbr_count", "charge", "pair_table", "cell", "params",
+                    "flags")]  # fmt: skip
+                for _ in range(todo):
+                    K.rebuild_if_needed(*rebuild_args)
+                    K.kick_drift_parallel(*kick_args)
+                    K.forces_parallel(self.physics, *force_args, 1)
+            steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
+            self.timings["kernel"] += _time.perf_counter() - t0
+            grown = self._handle_flags(done)
+            done += steps_done
+            self.step += steps_done
+            if grown:
+                self.n_rebuild_calls += 1
+            elif steps_done < todo:  # pragma: no cover - a stop without a recognised flag
+                raise RuntimeError(f"kernel stopped after {steps_done} of {todo} steps")
+        self._check_kinetic_energy()
+
+    def _rates_for(self, control: CellControl) -> np.ndarray:
+        rates = np.zeros(2)
+        needs_stress = any(a.mode == "stress" for a in (control.x, control.y))
+        stress = None
+        if needs_stress:
+            stress = self._stress_tensor()
+        p = 0.0 if stress is None else 0.5 * (stress[0, 0] + stress[1, 1])
+        rho = self.geometry.mass / self.geometry.solid_area
+        ctl = self.scene.control
+        for axis, ac in enumerate((control.x, control.y)):
+            if ac.mode == "strain_rate":
+                rates[axis] = ac.value
+                continue
+            p_ref = max(ac.value, p)
+            rate_max = ctl.inertial_number_max / (self.geometry.diameter * math.sqrt(rho / p_ref))
+            error = (ac.value - stress[axis, axis]) / (0.01 * ac.value)
+            rates[axis] = rate_max * float(np.clip(ctl.servo_gain * error, -1.0, 1.0))
+        return rates
+
+    def run(
+        self,
+        n_steps: int,
+        control: CellControl | None = None,
+        output_every: int | None = None,
+        writer: Any = None,
+        progress: bool = False,
+        callback: Callable[[Simulation, dict], None] | None = None,
+    ) -> dict:
+        """Advance ``n_steps`` steps; returns the measures at the end (see module docstring).
+
+        ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
+        ``output_every`` steps (default ``[output] every``) and at the end.
+        """
+        if n_steps < 0:
+            raise ValueError(f"n_steps must be >= 0, got {n_steps}")
+        control = control or self._control
+        self._control = control
+        self._stage = control.stage
+        output_every = output_every or self.scene.output.every
+        chunk = self.scene.integration.steps_per_call
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=n_steps, unit="step", desc=control.stage, smoothing=0.1)
+        measures: dict = {}
+        done = 0
+        next_output = output_every
+        try:
+            while done < n_steps:
+                todo = min(chunk, n_steps - done, next_output - done)
+                self._set_rates(self._rates_for(control))
+                self._advance(todo)
+                done += todo
+                if bar is not None:
+                    bar.update(todo)
+                if done == next_output or done == n_steps:
+                    next_output = done + output_every
+                    measures = self.measure()
+                    if writer is not None:
+                        writer.append(measures)
+                    if callback is not None:
+                        callback(self, measures)
+        finally:
+            if bar is not None:
+                bar.close()
+        return measures if measures else self.measure()
+
+    # ------------------------------------------------------------------------------------------
+    # measures
+    def _measure_sums(self) -> np.ndarray:
+        from dem_taichi.kernels.step import measure_sums
+
+        t0 = _time.perf_counter()
+        a = self.a
+        measure_sums(
+            self.physics, a["vel"], a["omega"], a["force"], a["torque"], a["disc_x"],
+            a["disc_off"], a["offsets"], a["nbr"], a["nbr_xi"], a["nbr_count"], a["charge"],
+            a["pair_table"], a["cell"], a["params"], a["measures"], a["rod_contacts"],
+            a["pair_out"], a["pair_flags"],
+        )  # fmt: skip
+        sums = a["measures"].to_numpy().astype(float)
+        self.timings["measure"] += _time.perf_counter() - t0
+        return sums
+
+    @property
+    def cell_lengths(self) -> np.ndarray:
+        c = self.a["cell"].to_numpy().astype(float)
+        return c[[L.C_LX, L.C_LY]]
+
+    @property
+    def time(self) -> float:
+        return float(self.a["cell"].to_numpy()[L.C_TIME])
+
+    def _stress_tensor(self, sums: np.ndarray | None = None) -> np.ndarray:
+        sums = self._measure_sums() if sums is None else sums
+        area = float(np.prod(self.cell_lengths))
+        return np.array([[sums[L.M_SXX], sums[L.M_SXY]], [sums[L.M_SYX], sums[L.M_SYY]]]) / area
+
+    def rod_positions(self) -> np.ndarray:
+        """Centroids (N, 2) wrapped into the cell [0, L)."""
+        s = self.a["pos"].to_numpy().astype(float)
+        return (s - np.floor(s)) * self.cell_lengths
+
+    def rod_angles(self) -> np.ndarray:
+        return self.a["angle"].to_numpy().astype(float)
+
+    def _contact_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
+        counts = self.a["nbr_count"].to_numpy()
+        bits = self.a["pair_flags"].to_numpy()
+        slots = np.arange(self.capacity)[None, :] < counts[:, None]
+        i, k = np.nonzero(slots & (bits & 8 != 0))
+        packed = self.a["nbr"].to_numpy()[i, k]
+        return i, k, packed, bits[i, k]
+
+    def _mechanical_coordination(self, n_contacts: int) -> float:
+        i, _, packed, bits = self._contact_pairs()
+        touching = (bits & 1) != 0
+        ns = self.geometry.n_spheres
+        rod_i = (i[touching] // ns).astype(np.int64)
+        rod_j = (packed[touching] // L.IMAGE_CODES // ns).astype(np.int64)
+        alive = np.ones(self.n_rods, dtype=bool)
+        while True:
+            keep = alive[rod_i] & alive[rod_j]
+            count = np.bincount(rod_i[keep], minlength=self.n_rods) + np.bincount(
+                rod_j[keep], minlength=self.n_rods
+            )
+            rattlers = alive & (count < 2)
+            if not rattlers.any():
+                break
+            alive &= ~rattlers
+        n_alive = int(alive.sum())
+        if n_alive == 0:
+            return 0.0
+        keep = alive[rod_i] & alive[rod_j]
+        return 2.0 * int(keep.sum()) / n_alive
+
+    def measure(self) -> dict:
+        """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
+        from dem_taichi.io.schema import stage_code
+
+        sums = self._measure_sums()
+        lengths = self.cell_lengths
+        area = float(np.prod(lengths))
+        stress = self._stress_tensor(sums)
+        self._last_stress = stress
+        p = 0.5 * (stress[0, 0] + stress[1, 1])
+        q = stress[1, 1] - stress[0, 0]
+        v = area / (self.n_rods * self.geometry.solid_area)
+        th = self.rod_angles()
+        c, s = np.cos(th), np.sin(th)
+        fxx, fyy, fxy = float(np.mean(c * c)), float(np.mean(s * s)), float(np.mean(c * s))
+        n_contacts = int(round(sums[L.M_CONTACTS]))
+        n_pairs = sums[L.M_INTERACTING]
+        mean_pair = sums[L.M_SUM_PAIR_FORCE] / n_pairs if n_pairs > 0 else 0.0
+        mean_rod = sums[L.M_SUM_ROD_FORCE] / self.n_rods
+        unbalanced = mean_rod / mean_pair if mean_pair > 0 else float("nan")
+        rho = self.geometry.mass / self.geometry.solid_area
+        rate = float(np.max(np.abs(self._rates)))
+        inertial = rate * self.geometry.diameter * math.sqrt(rho / p) if p > 0 else float("nan")
+        return {
+            "step": int(self.step),
+            "time": self.time,
+            "stage": stage_code(self._stage),
+            "cell_length_x": float(lengths[0]),
+            "cell_length_y": float(lengths[1]),
+            "strain_xx": float(-math.log(lengths[0] / self.reference_lengths[0])),
+            "strain_yy": float(-math.log(lengths[1] / self.reference_lengths[1])),
+            "strain_rate_xx": float(self._rates[0]),
+            "strain_rate_yy": float(self._rates[1]),
+            "stress_xx": float(stress[0, 0]),
+            "stress_yy": float(stress[1, 1]),
+            "stress_xy": float(0.5 * (stress[0, 1] + stress[1, 0])),
+            "mean_stress": float(p),
+            "deviatoric_stress": float(q),
+            "specific_volume": float(v),
+            "void_ratio": float(v - 1.0),
+            "fabric_xx": fxx,
+            "fabric_yy": fyy,
+            "fabric_xy": fxy,
+            "fabric_deviator": fyy - fxx,
+            "coordination_number": 2.0 * n_contacts / self.n_rods,
+            "mechanical_coordination_number": self._mechanical_coordination(n_contacts),
+            "n_contacts": n_contacts,
+            "n_long_range_pairs": int(round(sums[L.M_LONG_PAIRS])),
+            "kinetic_energy": float(sums[L.M_KE_TRANS] + sums[L.M_KE_ROT]),
+            "contact_energy": float(sums[L.M_U_CONTACT]),
+            "long_range_energy": float(sums[L.M_U_LONG]),
+            "unbalanced_force_ratio": float(unbalanced),
+            "inertial_number": float(inertial),
+        }
+
+    def stress(self) -> np.ndarray:
+        """Stress tensor (2, 2), compression positive, from the current forces."""
+        return self._stress_tensor()
+
+    def total_energy(self) -> float:
+        """Kinetic + contact + long-range energy (for conservation checks)."""
+        m = self.measure()
+        return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"]
+
+    # ------------------------------------------------------------------------------------------
+    # network snapshot
+    def snapshot(self):
+        """The interacting network as a :class:`dem_taichi.linear_response.NetworkSnapshot`."""
+        from dem_taichi.linear_response import NetworkSnapshot
+
+        self._measure_sums()
+        i, k, packed, bits = self._contact_pairs()
+        j = packed // L.IMAGE_CODES
+        code = packed % L.IMAGE_CODES
+        image = np.stack([code // 5 - 2, code % 5 - 2], axis=1).astype(float)
+        lengths = self.cell_lengths
+        disc_x = self.a["disc_x"].to_numpy().astype(float)
+        r_ij = disc_x[i] - disc_x[j] - image * lengths
+        wrapped = self.rod_positions()
+        ns = self.geometry.n_spheres
+        offsets = self.geometry.offsets
+        th = self.rod_angles()
+        axis = np.stack([np.cos(th), np.sin(th)], axis=1)
+        x_w = wrapped[:, None, :] + offsets[None, :, None] * axis[:, None, :]
+        x_w = x_w.reshape(-1, 2)
+        shift = x_w[i] - x_w[j] - r_ij
+        shift = np.round(shift / lengths) * lengths
+        normal = r_ij / np.linalg.norm(r_ij, axis=1)[:, None]
+        tangent = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
+        xi = self.a["nbr_xi"].to_numpy().astype(float)[i, k]
+        touching = (bits & 1) != 0
+        xi = np.where(touching, xi, 0.0)
+        charge, f_max, k_a = species_parameters(self.scene)
+        sc = self.scene
+        return NetworkSnapshot(
+            cell_lengths=lengths.copy(),
+            rod_position=wrapped,
+            rod_angle=th,
+            n_spheres=ns,
+            spacing=self.geometry.spacing,
+            diameter=self.geometry.diameter,
+            disc_mass=self.geometry.disc_mass,
+            charge=charge,
+            f_max=f_max,
+            k_a=k_a,
+            k_n=float(self.a["params"].to_numpy()[L.P_KN]),
+            k_t=float(self.a["params"].to_numpy()[L.P_KT]),
+            mu=sc.contact.mu,
+            vdw_f_max=sc.van_der_waals.f_max if self.physics.vdw else 0.0,
+            vdw_k=sc.van_der_waals.k if self.physics.vdw else 0.0,
+            pair_i=i.astype(np.int64),
+            pair_j=j.astype(np.int64),
+            pair_shift=shift,
+            tangential_spring=xi[:, None] * tangent,
+            sliding=(bits & 4) != 0,
+        )
+
+    # ------------------------------------------------------------------------------------------
+    # state, parameters, checkpoints
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Numpy copies of the full state (see :mod:`dem_taichi.state`)."""
+        a = self.a
+        params = a["params"].to_numpy()
+        return {
+            "reduced_position": a["pos"].to_numpy(),
+            "angle": a["angle"].to_numpy(),
+            "velocity": a["vel"].to_numpy(),
+            "angular_velocity": a["omega"].to_numpy(),
+            "force": a["force"].to_numpy(),
+            "torque": a["torque"].to_numpy(),
+            "ref_position": a["ref_pos"].to_numpy(),
+            "ref_angle": a["ref_angle"].to_numpy(),
+            "neighbours": a["nbr"].to_numpy(),
+            "tangential_spring": a["nbr_xi"].to_numpy(),
+            "neighbour_count": a["nbr_count"].to_numpy(),
+            "cell": a["cell"].to_numpy(),
+            "flags": a["flags"].to_numpy(),
+            "params": params,
+            "reference_lengths": self.reference_lengths.copy(),
+            "step": np.array(self.step, dtype=np.int64),
+        }
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore a state from :meth:`get_state` (same scene and precision)."""
+        n, m = self.n_rods, self.n_discs
+        if state["angle"].shape != (n,) or state["neighbours"].shape[0] != m:
+            raise ValueError(
+                f"state of {state['angle'].shape[0]} rods does not fit this simulation ({n} rods)"
+            )
+        if state["angle"].dtype != self._real:
+            raise ValueError(
+                f"state precision {state['angle'].dtype} differs from the simulation's "
+                f"{np.dtype(self._real)}"
+            )
+        capacity = state["neighbours"].shape[1]
+        if capacity != self.capacity:
+            self._grow(capacity)
+        a = self.a
+        for key, name in (
+            ("reduced_position", "pos"), ("angle", "angle"), ("velocity", "vel"),
+            ("angular_velocity", "omega"), ("force", "force"), ("torque", "torque"),
+            ("ref_position", "ref_pos"), ("ref_angle", "ref_angle"), ("neighbours", "nbr"),
+            ("tangential_spring", "nbr_xi"), ("neighbour_count", "nbr_count"),
+            ("cell", "cell"), ("flags", "flags"), ("params", "params"),
+        ):  # fmt: skip
+            a[name].from_numpy(np.ascontiguousarray(state[key]))
+        self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
+        self.step = int(state["step"])
+        params = state["params"]
+        self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
+        # disc positions are derived: recompute them from the centroids
+        from dem_taichi.kernels.step import place_all_discs
+
+        place_all_discs(a["pos"], a["angle"], a["offsets"], a["disc_x"], a["disc_off"], a["cell"])
+
+    def set_parameters(self, **values: float) -> None:
+        """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""
+        params = self.a["params"].to_numpy()
+        for name, value in values.items():
+            if name not in _PARAMETER_INDEX:
+                raise ValueError(
+                    f"unknown parameter {name!r}; allowed: {', '.join(sorted(_PARAMETER_INDEX))}"
+                )
+            if not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name} = {value!r} must be finite and >= 0")
+            params[_PARAMETER_INDEX[name]] = value
+        self.a["params"].from_numpy(params)
+
+    def get_parameter(self, name: str) -> float:
+        return float(self.a["params"].to_numpy()[_PARAMETER_INDEX[name]])
+
+    def set_strain_reference(self) -> None:
+        """Take the current cell as L0 of the logarithmic strains."""
+        self.reference_lengths = self.cell_lengths.astype(np.float64)
+
+    def save_checkpoint(self, path: str | Path) -> Path:
+        """Write the full state and the scene to ``path`` (``.npz``) atomically."""
+        from dem_taichi.io.checkpoint import save_checkpoint
+
+        meta = {
+            "scene_toml": scene_to_toml(self.scene),
+            "precision": self.precision,
+            "arch": self.arch,
+            "execution": self.execution,
+            "deterministic": self.deterministic,
+            "stage": self._stage,
+            "step": int(self.step),
+        }
+        return save_checkpoint(path, self.get_state(), meta)
+
+    @classmethod
+    def from_checkpoint(
+        cls, path: str | Path, arch: str | None = None, precision: str | None = None
+    ) -> Simulation:
+        """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
+        from dem_taichi.io.checkpoint import load_checkpoint
+
+        arrays, meta = load_checkpoint(path)
+        scene = scene_from_toml(meta["scene_toml"])
+        precision = precision or meta["precision"]
+        if precision != meta["precision"]:
+            raise ValueError(
+                f"checkpoint precision {meta['precision']} cannot be resumed as {precision}"
+            )
+        lengths = arrays["cell"][[L.C_LX, L.C_LY]].astype(float)
+        reduced = arrays["reduced_position"].astype(float)
+        gas = GasState(
+            lengths,
+            (reduced - np.floor(reduced)) * lengths,
+            arrays["angle"].astype(float),
+            arrays["velocity"].astype(float),
+            arrays["angular_velocity"].astype(float),
+        )
+        sim = cls(
+            scene,
+            arch=arch or meta["arch"],
+            precision=precision,
+            deterministic=bool(meta.get("deterministic", False)),
+            execution=meta.get("execution"),
+            initial=gas,
+            neighbour_capacity=arrays["neighbours"].shape[1],
+        )
+        sim.set_state(arrays)
+        sim._stage = meta.get("stage", "other")
+        return sim

@@ -1,0 +1,75 @@
+"""Index constants of the small arrays passed to the kernels (plain Python, no Taichi).
+
+``params`` (real): runtime physical/numerical parameters — changing them never recompiles.
+``cell`` (real): cell lengths, lengths at the last list build, time, list-displacement trackers.
+``flags`` (int32): control and error flags set by kernels and read by the host.
+``measures`` (real): sums accumulated by the measure kernel.
+"""
+
+# params ---------------------------------------------------------------------------------------
+P_DT = 0  # time step Δt
+P_KN = 1  # normal stiffness k_n
+P_GN = 2  # normal damping γ_n
+P_KT = 3  # tangential stiffness k_t
+P_GT = 4  # tangential damping γ_t
+P_MU = 5  # Coulomb friction μ
+P_ALPHA = 6  # local non-viscous damping α
+P_MASS = 7  # rod mass M
+P_INERTIA = 8  # rod moment of inertia I
+P_DIAM = 9  # disc diameter d
+P_RLIST = 10  # list radius: interaction cut-off + skin (centre distance)
+P_SKIN = 11  # Verlet skin
+P_VDW_F = 12  # van der Waals F_w
+P_VDW_K = 13  # van der Waals k_w
+P_RATE_X = 14  # cell strain rate along x, compression positive (ε̇_xx = −L̇_x/L_x)
+P_RATE_Y = 15  # same along y
+P_MAX_OFFSET = 16  # max |o_s| of a disc from its rod centroid
+P_MAX_OVERLAP = 17  # blow-up bound on δ (absolute)
+P_REACH = 18  # bound on the centroid branch vector of a listed pair (rod length + list radius)
+P_CUT = 19  # interaction cut-off (centre distance): d, or d + max range of the long-range laws
+N_PARAMS = 20
+
+# cell -----------------------------------------------------------------------------------------
+C_LX = 0
+C_LY = 1
+C_LBX = 2  # L_x at the last list build
+C_LBY = 3
+C_TIME = 4
+C_VMAX = 5  # max disc speed bound during the last step
+C_DISP = 6  # max disc displacement since the last list build
+N_CELL = 8
+
+# flags ----------------------------------------------------------------------------------------
+F_STOP = 0  # a kernel asked the host to stop (overflow or blow-up)
+F_OVERFLOW = 1  # the neighbour list capacity was too small
+F_NEEDED = 2  # the largest neighbour count seen
+F_OLD_SAVED = 3  # the previous list has been moved to the old buffers (rebuild pending)
+F_FORCE_REBUILD = 4  # rebuild at the next step whatever the displacements
+F_BLOWUP = 5  # 0 = fine, 1 = non-finite state, 2 = overlap beyond the bound
+F_REBUILDS = 6  # number of list builds
+F_STEPS = 7  # steps done in the current call
+F_BLOWUP_INDEX = 8  # rod (code 1) or disc (code 2) that triggered the blow-up
+N_FLAGS = 12
+
+BLOWUP_NONFINITE = 1
+BLOWUP_OVERLAP = 2
+
+# measures -------------------------------------------------------------------------------------
+M_SXX = 0  # Σ f_x b_x over inter-rod pairs (not yet divided by the area)
+M_SXY = 1  # Σ f_x b_y
+M_SYX = 2  # Σ f_y b_x
+M_SYY = 3  # Σ f_y b_y
+M_U_CONTACT = 4  # Σ ½ k_n δ² + ½ k_t ξ²
+M_U_LONG = 5  # Σ long-range (and van der Waals) potential
+M_CONTACTS = 6  # number of disc contacts (δ > 0)
+M_LONG_PAIRS = 7  # number of disc pairs with a non-zero long-range or vdW force
+M_SUM_PAIR_FORCE = 8  # Σ |F| over interacting pairs
+M_KE_TRANS = 9  # Σ ½ M |v|² (full-step velocities)
+M_KE_ROT = 10  # Σ ½ I ω²
+M_SUM_ROD_FORCE = 11  # Σ_r |F_r|
+M_SLIDING = 12  # number of contacts at the Coulomb cap
+M_INTERACTING = 13  # number of interacting pairs (contact or non-zero long-range force)
+N_MEASURES = 16
+
+# neighbour entry packing: entry = j * 25 + (m_x + 2) * 5 + (m_y + 2), with image m in [-2, 2]
+IMAGE_CODES = 25

@@ -1,0 +1,67 @@
+"""Engine state on the host: the names and meaning of the arrays of :meth:`Simulation.get_state`.
+
+The state is a plain ``dict[str, numpy.ndarray]`` (so it can be copied, compared bit for bit and
+written to a checkpoint by :mod:`dem_taichi.io.checkpoint`). Keys:
+
+=================  ==============  ===========================================================
+key                shape / dtype   meaning
+=================  ==============  ===========================================================
+reduced_position   (N, 2) real     centroid in cell units s (X = s ∘ L), not always in [0, 1)
+angle              (N,) real       θ, rod axis (cos θ, sin θ)
+velocity           (N, 2) real     fluctuating centroid velocity at the half step
+angular_velocity   (N,) real       ω at the half step
+force, torque      (N, 2), (N,)    total pair force/torque at the current positions
+ref_position       (N, 2) real     reduced centroids at the last neighbour-list build
+ref_angle          (N,) real       angles at the last build
+neighbours         (M, K) int32    half Verlet list entries j·25 + image code
+tangential_spring  (M, K) real     ξ of each entry (scalar along t = (−n_y, n_x))
+neighbour_count    (M,) int32      used entries per disc
+cell               (8,) real       L_x, L_y, lengths at the last build, time, trackers
+flags              (12,) int32     kernel flags (see kernels/layout.py)
+params             (20,) real      runtime parameters incl. the current strain rates
+reference_lengths  (2,) float64    L0 of the logarithmic strain
+step               () int64        steps done since the start of the run
+=================  ==============  ===========================================================
+
+The state restores a run exactly: resuming from it gives the same trajectory bit for bit (serial
+execution) as not stopping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STATE_KEYS = (
+    "reduced_position",
+    "angle",
+    "velocity",
+    "angular_velocity",
+    "force",
+    "torque",
+    "ref_position",
+    "ref_angle",
+    "neighbours",
+    "tangential_spring",
+    "neighbour_count",
+    "cell",
+    "flags",
+    "params",
+    "reference_lengths",
+    "step",
+)
+
+
+def copy_state(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Deep copy of a state dict."""
+    return {key: np.array(value, copy=True) for key, value in state.items()}
+
+
+def states_equal(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    """True when two states are bitwise identical (same keys, dtypes, shapes and bytes)."""
+    if set(a) != set(b):
+        return False
+    for key in a:
+        x, y = np.asarray(a[key]), np.asarray(b[key])
+        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
+            return False
+    return True
