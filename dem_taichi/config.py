@@ -338,6 +338,10 @@ def _load_section(cls: type, name: str, table: Any) -> Any:
 
 def scene_from_dict(data: dict, source_text: str = "") -> Scene:
     """Build a :class:`Scene` from a nested dict (as returned by ``tomllib``)."""
+    # The virtual-experiment sections ([protocol], [probing]) register themselves on import;
+    # import lazily here so that scenes carrying them load from anywhere.
+    import dem_taichi.protocol_config  # noqa: F401
+
     allowed = {**_CORE_SECTIONS, **_EXTENSION_SECTIONS}
     unknown = sorted(set(data) - set(allowed))
     if unknown:
