@@ -1,0 +1,232 @@
+"""Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]`` (model.md §1.6).
+
+Both are frozen dataclasses validated by :class:`dem_taichi.config.SceneSection` (type, range,
+choices; the message names the key and what is allowed) and registered with
+:func:`dem_taichi.config.register_section`, so a scene carrying them loads from anywhere (the scene
+loader imports this module). The loaded instances are ``scene.extensions["protocol"]`` and
+``scene.extensions["probing"]``; :func:`protocol_settings` / :func:`probing_settings` return them,
+or the defaults when a scene has no such section.
+
+Units: DEM units (d = 1, disc mass = 1); stresses in force/length, compression positive; strains
+logarithmic, compression positive. ``stress_scale_kpa`` states what one DEM stress unit means in
+kPa (a reading of the results, not an input of the physics).
+
+Symbols: p = (σ_xx + σ_yy)/2, q = σ_yy − σ_xx, η = q/p, Z_m mechanical coordination number,
+I inertial number, UFR unbalanced-force ratio (definitions: dem_taichi.io.schema).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from dem_taichi.config import SceneError, SceneSection, register_section
+
+__all__ = [
+    "ProtocolConfig",
+    "ProbingConfig",
+    "protocol_settings",
+    "probing_settings",
+    "parse_number_list",
+]
+
+
+def _range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
+    return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
+
+
+def _choices(*values, doc=""):
+    return {"choices": tuple(values), "doc": doc}
+
+
+def parse_number_list(text: str, key: str) -> tuple[float, ...]:
+    """Parse a comma-separated list of numbers (``"0.5, 1.0"``; ``""`` → empty).
+
+    Lists are written as strings so that every scene round-trips through ``scene_to_toml``.
+    """
+    if not text.strip():
+        return ()
+    values = []
+    for item in text.split(","):
+        try:
+            value = float(item)
+        except ValueError:
+            raise SceneError(
+                f'{key} = {text!r}: must be a comma-separated list of numbers, e.g. "0.5, 1.0"'
+            ) from None
+        if not math.isfinite(value):
+            raise SceneError(f"{key} = {text!r}: {item.strip()!r} is not finite")
+        values.append(value)
+    return tuple(values)
+
+
+@dataclass(frozen=True)
+class ProtocolConfig(SceneSection):
+    """``[protocol]``: the loading paths of the study (model.md §1.6, steps 1–3).
+
+    Stages: gas → isotropic strain-controlled compression in increments, each relaxed, until the
+    fluid–solid transition (state A) → A→B isotropic (σ_xx = σ_yy servo) up to
+    ``target_mean_stress`` (state B) → A→C K0 (ε_xx = 0, σ_yy servo) until p reaches
+    ``target_mean_stress`` (state C) → C→B at constant p, q → 0 (state B') → radial paths from A
+    at each η of ``radial_stress_ratios`` up to ``target_mean_stress``.
+
+    Fields (defaults in brackets):
+
+    - ``stress_scale_kpa`` [1.0]: kPa per DEM stress unit (force/length), stated in the results.
+    - ``target_mean_stress`` [100.0]: p at B and C and at the ends of the radial paths (DEM units).
+    - ``path_increments`` [6]: relaxed stress increments (log-spaced in p) along A→B, A→C, radial.
+    - ``unloading_increments`` [4]: relaxed increments of q (linear to 0) along C→B.
+    - ``radial_stress_ratios`` [""]: comma-separated η = q/p of the radial paths ("" = none).
+    - ``run_isotropic``, ``run_k0``, ``run_unloading`` [true]: which paths run (C→B needs K0).
+    - ``compression_increment`` [0.02]: per-axis logarithmic strain of a compression increment
+      towards A (coarse); refined by halving down to ``min_compression_increment`` [0.0025]
+      when a candidate A is found (the sample is then restored to the previous relaxed state).
+    - ``gas_strain_rate`` [0.05]: strain-rate cap (1/time) of the compression while p ≤
+      ``pressure_tolerance`` (the inertial-number cap of [control] applies once p > 0).
+    - ``pressure_tolerance`` [0.5]: relaxed static p above which a state carries load (DEM).
+    - ``coordination_min`` [3.0]: Z_m at or above which the contact network is taken as
+      percolating (2D rigid frictional bodies are isostatic at Z = d + 1 = 3).
+    - ``confirm_increments`` [2]: relaxed increments after a candidate A over which p must stay
+      above the tolerance (the transition rule "p stays positive").
+    - ``max_compression_increments`` [400]: give up (error) after this many increments.
+    - ``relax_unbalanced_force`` [1e-4]: UFR below which a state is relaxed (static).
+    - ``relax_kinetic_energy_per_rod`` [1e-8]: and kinetic energy per rod below this (energy).
+    - ``relax_check_steps`` [500]: steps between relaxation checks.
+    - ``relax_max_steps`` [200000]: most steps of one relaxation (then it continues, recorded
+      as not relaxed).
+    - ``stress_tolerance`` [1e-3]: |σ − σ_target|/σ_target allowed at relaxed states.
+    - ``servo_max_iterations`` [40]: most strain corrections to reach a stress target.
+    - ``max_strain_increment`` [0.01]: largest strain of one correction (per axis).
+    - ``load_steps_min`` [200]: fewest steps over which a strain increment is applied.
+    """
+
+    SECTION = "protocol"
+    stress_scale_kpa: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    target_mean_stress: float = field(default=100.0, metadata=_range(0.0, None, lo_open=True))
+    path_increments: int = field(default=6, metadata=_range(1, 1000))
+    unloading_increments: int = field(default=4, metadata=_range(1, 1000))
+    radial_stress_ratios: str = ""
+    run_isotropic: bool = True
+    run_k0: bool = True
+    run_unloading: bool = True
+    compression_increment: float = field(default=0.02, metadata=_range(0.0, 0.2, lo_open=True))
+    min_compression_increment: float = field(
+        default=0.0025, metadata=_range(0.0, 0.2, lo_open=True)
+    )
+    gas_strain_rate: float = field(default=0.05, metadata=_range(0.0, None, lo_open=True))
+    pressure_tolerance: float = field(default=0.5, metadata=_range(0.0, None, lo_open=True))
+    coordination_min: float = field(default=3.0, metadata=_range(0.0))
+    confirm_increments: int = field(default=2, metadata=_range(0, 100))
+    max_compression_increments: int = field(default=400, metadata=_range(1))
+    relax_unbalanced_force: float = field(default=1e-4, metadata=_range(0.0, 1.0, lo_open=True))
+    relax_kinetic_energy_per_rod: float = field(
+        default=1e-8, metadata=_range(0.0, None, lo_open=True)
+    )
+    relax_check_steps: int = field(default=500, metadata=_range(1))
+    relax_max_steps: int = field(default=200_000, metadata=_range(1))
+    stress_tolerance: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
+    servo_max_iterations: int = field(default=40, metadata=_range(1))
+    max_strain_increment: float = field(default=0.01, metadata=_range(0.0, 0.2, lo_open=True))
+    load_steps_min: int = field(default=200, metadata=_range(1))
+
+    def check(self) -> None:
+        if self.min_compression_increment > self.compression_increment:
+            raise SceneError(
+                f"[protocol] min_compression_increment = {self.min_compression_increment} > "
+                f"compression_increment = {self.compression_increment}: allowed "
+                "(0, compression_increment]"
+            )
+        ratios = parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
+        for eta in ratios:
+            if not -2.0 < eta < 2.0:
+                raise SceneError(
+                    f"[protocol] radial_stress_ratios: η = {eta} out of range: allowed (-2, 2) "
+                    "(both principal stresses must stay compressive: σ = p (1 ± η/2))"
+                )
+        if self.run_unloading and not self.run_k0:
+            raise SceneError(
+                "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"
+            )
+
+    @property
+    def radial_ratios(self) -> tuple[float, ...]:
+        """η of the radial paths, parsed from ``radial_stress_ratios``."""
+        return parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
+
+
+@dataclass(frozen=True)
+class ProbingConfig(SceneSection):
+    """``[probing]``: elastic probes at states of every path (model.md §1.6, step 4).
+
+    Fields (defaults in brackets):
+
+    - ``enabled`` [true]: probe at all.
+    - ``states`` ["A, B, C, B'"]: labelled states probed (any of A, B, C, B', R<k>_end for the
+      k-th radial path); "" = none.
+    - ``every_n_increments`` [2]: also probe every n-th relaxed increment of each path (0 = only
+      the labelled states).
+    - ``dynamic`` [true]: run the dynamic strain probes (amplitude sweep).
+    - ``amplitude_min`` [1e-6], ``amplitude_max`` [1e-3], ``amplitudes_per_decade`` [1]:
+      the log-spaced strain amplitudes of the sweep (model.md: ≈1e-7…1e-3).
+    - ``apply_steps`` [200]: fewest steps over which a probe strain is applied (more when the
+      inertial-number cap needs it).
+    - ``relax_unbalanced_force`` [1e-7]: UFR at which a probe is relaxed (stricter than the path:
+      a probe of 1e-6 changes σ by ~1e-4 relative).
+    - ``relax_max_steps`` [60000]: most relaxation steps of one probe.
+    - ``plateau_tolerance`` [0.02]: relative tolerance of the elastic-plateau rule
+      (:func:`dem_taichi.analysis.elastic_plateau`).
+    - ``linear`` [true]: run the linear-response probe.
+    - ``sliding_contacts`` ["stuck"]: how contacts at the Coulomb cap respond in the
+      linear-response probe ("stuck": spring k_t, the small-amplitude reversal branch that a
+      ± probe mostly sees; "free": stay on the cap).
+    """
+
+    SECTION = "probing"
+    enabled: bool = True
+    states: str = "A, B, C, B'"
+    every_n_increments: int = field(default=2, metadata=_range(0))
+    dynamic: bool = True
+    amplitude_min: float = field(default=1e-6, metadata=_range(0.0, 0.1, lo_open=True))
+    amplitude_max: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
+    amplitudes_per_decade: int = field(default=1, metadata=_range(1, 20))
+    apply_steps: int = field(default=200, metadata=_range(1))
+    relax_unbalanced_force: float = field(default=1e-7, metadata=_range(0.0, 1.0, lo_open=True))
+    relax_max_steps: int = field(default=60_000, metadata=_range(1))
+    plateau_tolerance: float = field(default=0.02, metadata=_range(0.0, 1.0, lo_open=True))
+    linear: bool = True
+    sliding_contacts: str = field(default="stuck", metadata=_choices("stuck", "free"))
+
+    def check(self) -> None:
+        if self.amplitude_min > self.amplitude_max:
+            raise SceneError(
+                f"[probing] amplitude_min = {self.amplitude_min} > amplitude_max = "
+                f"{self.amplitude_max}: allowed (0, amplitude_max]"
+            )
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Labels of ``states``, parsed (comma-separated, blanks stripped)."""
+        return tuple(s.strip() for s in self.states.split(",") if s.strip())
+
+    @property
+    def amplitudes(self) -> tuple[float, ...]:
+        """Log-spaced amplitudes from ``amplitude_min`` to ``amplitude_max`` (both included)."""
+        lo, hi = math.log10(self.amplitude_min), math.log10(self.amplitude_max)
+        n = max(int(round((hi - lo) * self.amplitudes_per_decade)), 0) + 1
+        if n == 1:
+            return (self.amplitude_min,)
+        return tuple(10 ** (lo + (hi - lo) * k / (n - 1)) for k in range(n))
+
+
+register_section("protocol", ProtocolConfig)
+register_section("probing", ProbingConfig)
+
+
+def protocol_settings(scene) -> ProtocolConfig:
+    """The scene's ``[protocol]`` section, or the defaults when it has none."""
+    return scene.extensions.get("protocol", ProtocolConfig())
+
+
+def probing_settings(scene) -> ProbingConfig:
+    """The scene's ``[probing]`` section, or the defaults when it has none."""
+    return scene.extensions.get("probing", ProbingConfig())
