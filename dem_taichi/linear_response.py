@@ -40,9 +40,12 @@ C = (1/A)[Born term - Γᵀ H⁻¹ Γ] plus the stress terms.
 
 Zero modes: (i) rods with at most one active pair are pruned iteratively (exact: in equilibrium
 such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
-relaxed response; a rod with no pair is a rattler); (ii) the two global translations are removed
-exactly by pinning the translation of the best-connected rod (every pair exerts equal and
-opposite forces, so the rows of the pinned DOFs follow from the others); DOFs with a zero row
+relaxed response; a rod with no pair is a rattler), then clusters that do not span the periodic
+cell (found by unwrapping image labels along the pairs) are pruned too (exact: relaxation undoes
+their affine displacement, so they add only their static stress to the -tr(G) σ area term);
+(ii) the rigid translations of every remaining cluster are removed exactly by pinning the
+translation of its best-connected rod (every pair exerts equal and opposite forces, so the rows
+of the pinned DOFs follow from the others); DOFs with a zero row
 and column of H (below 1e-12 of the largest row sum, e.g. the spin of single-disc bodies without
 friction) are left out; (iii) the reduced H is factorised with SuperLU; if it is exactly
 singular (other floppy modes), H + η s I is used with η = ``regularisation`` (relative) and
@@ -59,6 +62,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sparse
+import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as sparse_linalg
 
 from dem_taichi import forcelaw
@@ -234,7 +238,8 @@ class SolverInfo:
             minus decoupled DOFs).
         n_decoupled_dof: DOFs of kept rods with an all-zero row and column of H, left out.
         n_pairs_used: active pairs between kept rods.
-        pinned_rod: rod whose translation was fixed to remove the global translations (-1: none).
+        pinned_rods: one rod per kept (spanning) cluster whose translation was fixed, removing
+            the rigid translations of that cluster.
         regularised: True if H was exactly singular and H + η s I was solved instead.
         regularisation: η s actually added (0 when not regularised).
         residual: max |H u - Γ| / max |Γ| of the solution.
@@ -247,7 +252,7 @@ class SolverInfo:
     n_dof: int
     n_decoupled_dof: int
     n_pairs_used: int
-    pinned_rod: int
+    pinned_rods: np.ndarray
     regularised: bool
     regularisation: float
     residual: float
@@ -276,7 +281,8 @@ class LinearResponse:
         pure_shear_modulus: ½ d(σ_xx - σ_yy)/d(ε_xx - ε_yy) = (C11 + C22 - C12 - C21)/4.
         simple_shear_modulus: dσ_xy/dγ under simple shear x += γ y (includes the rotation).
         voigt_shear_modulus: C_33 = dσ_xy/dγ for the symmetric shear ε_xy = ε_yx = γ/2.
-        n_rattlers: rods pruned (no pair, or dangling by one pair, iteratively).
+        n_rattlers: rods pruned (no pair, dangling by one pair iteratively, or in a cluster that
+            does not span the cell).
         rattlers: their indices.
         n_floppy_modes: estimate, LU pivots below 1e-8 max pivot of the solved matrix (0 if the
             exact factorisation succeeded without tiny pivots).
@@ -336,6 +342,41 @@ def _prune_rattlers(rod_i, rod_j, active, n_rods) -> np.ndarray:
         if not np.any(drop):
             return keep
         keep &= ~drop
+
+
+def _rigid_clusters(rod_i, rod_j, used, image, keep, n_rods):
+    """Connected clusters of kept rods and whether each wraps around the periodic cell.
+
+    ``image`` (P, 2) integer image vectors (shift / cell length). Rods get unwrapped image labels
+    along a breadth-first spanning tree; a cluster wraps (spans the cell) iff some pair is
+    inconsistent with them. Returns (labels (N,) with -1 for rods not kept, wraps (n_clusters,)).
+    """
+    p, q, m = rod_i[used], rod_j[used], image[used]
+    # r = x_i - x_j - shift: next to P (unwrapped image M_P) sits Q's copy with M_Q = M_P + m
+    graph = sparse.coo_matrix((np.ones(p.size), (p, q)), shape=(n_rods, n_rods)).tocsr()
+    n_labels, labels = csgraph.connected_components(graph, directed=False)
+    labels = np.where(keep, labels, -1)
+    wraps = np.zeros(n_labels, dtype=bool)
+    if p.size == 0:
+        return labels, wraps
+    key = np.concatenate([p * n_rods + q, q * n_rods + p])
+    step = np.concatenate([m, -m])
+    order = np.argsort(key, kind="stable")
+    key, step = key[order], step[order]
+    unwrapped = np.zeros((n_rods, 2), dtype=np.int64)
+    symmetric = graph + graph.T
+    roots = [int(np.flatnonzero(labels == label)[0]) for label in np.unique(labels[labels >= 0])]
+    for root in roots:
+        nodes, predecessors = csgraph.breadth_first_order(
+            symmetric, root, directed=False, return_predecessors=True
+        )
+        nodes = nodes[1:]
+        edge = np.searchsorted(key, predecessors[nodes] * n_rods + nodes)
+        for node, parent, shift in zip(nodes, predecessors[nodes], step[edge], strict=True):
+            unwrapped[node] = unwrapped[parent] + shift
+    mismatch = np.any(unwrapped[q] != unwrapped[p] + m, axis=1)
+    wraps[labels[p][mismatch]] = True
+    return labels, wraps
 
 
 def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, sliding_free: np.ndarray,
@@ -431,7 +472,8 @@ class NetworkMatrices:
         stress_strain: D_G (4, 4), ∂σ/∂G of the affine deformation (area and branch terms in).
         stress: σ (2, 2) of the snapshot.
         used_pairs: (P,) bool, active pairs between kept rods (the ones assembled).
-        kept_rods: (N,) bool, rods not pruned as rattlers.
+        kept_rods: (N,) bool, rods not pruned (rattlers, dangling rods, finite clusters).
+        cluster: (N,) label of the connected cluster of every kept rod (-1 for pruned rods).
         sliding_free: (P,) bool, contacts treated as sliding on the Coulomb cap.
         unbalanced_force: max |R| / mean |f| over active pairs (0 = exact equilibrium).
     """
@@ -443,6 +485,7 @@ class NetworkMatrices:
     stress: np.ndarray
     used_pairs: np.ndarray
     kept_rods: np.ndarray
+    cluster: np.ndarray
     sliding_free: np.ndarray
     unbalanced_force: float
 
@@ -459,7 +502,8 @@ def network_matrices(
         snapshot: the network.
         sliding_contacts: "free" or "stuck", as in :func:`linear_response`.
         include_geometric: keep the pre-stress terms.
-        prune_rattlers: drop rods with at most one active pair (iteratively) and their pairs.
+        prune_rattlers: drop rods with at most one active pair (iteratively), then clusters that
+            do not span the periodic cell, and their pairs (see the module docstring).
     """
     if sliding_contacts not in ("free", "stuck"):
         raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
@@ -480,11 +524,16 @@ def network_matrices(
         else 0.0
     )
 
+    image = np.rint(snapshot.pair_shift / snapshot.cell_lengths).astype(np.int64)
     if prune_rattlers:
         keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
+        used = active & keep_rod[rod_i] & keep_rod[rod_j]
+        labels, wraps = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
+        keep_rod &= (labels >= 0) & wraps[np.maximum(labels, 0)]
     else:
         keep_rod = np.ones(n_rods, dtype=bool)
     used = active & keep_rod[rod_i] & keep_rod[rod_j]
+    labels, _ = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
     flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
 
@@ -534,6 +583,7 @@ def network_matrices(
         stress=stress,
         used_pairs=used,
         kept_rods=keep_rod,
+        cluster=labels,
         sliding_free=sliding_free,
         unbalanced_force=float(unbalanced),
     )
@@ -573,15 +623,15 @@ def linear_response(
     gamma = matrices.strain_coupling
     n_dof_all = 3 * n_rods
 
-    # reduced system: kept rods, translation of the best-connected rod pinned
+    # reduced system: kept rods, translation of the best-connected rod of each cluster pinned
     keep_dof = np.repeat(keep_rod, 3)
-    pinned = -1
-    if n_used:
-        count = np.bincount(rod_i[used], minlength=n_rods) + np.bincount(
-            rod_j[used], minlength=n_rods
-        )
-        pinned = int(np.argmax(count))
-        keep_dof[3 * pinned : 3 * pinned + 2] = False
+    count = np.bincount(rod_i[used], minlength=n_rods) + np.bincount(rod_j[used], minlength=n_rods)
+    pinned = []
+    for label in np.unique(matrices.cluster[keep_rod]):
+        members = np.flatnonzero(matrices.cluster == label)
+        rod = int(members[np.argmax(count[members])])
+        pinned.append(rod)
+        keep_dof[3 * rod : 3 * rod + 2] = False
     # DOFs with a zero row and column of H are decoupled (e.g. the spin of a single-disc
     # "rod" without tangential forces): their displacement is arbitrary and changes nothing.
     # "Zero" is 1e-12 of the largest row sum: those terms cancel only to rounding.
@@ -630,7 +680,7 @@ def linear_response(
         n_dof=int(index.size),
         n_decoupled_dof=n_decoupled,
         n_pairs_used=n_used,
-        pinned_rod=pinned,
+        pinned_rods=np.asarray(pinned, dtype=np.int64),
         regularised=regularised,
         regularisation=added,
         residual=residual,

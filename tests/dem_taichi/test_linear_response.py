@@ -559,3 +559,43 @@ def test_cost_on_a_paper_size_network():
     assert np.all(np.isfinite(response.stiffness))
     assert response.solver.residual < 1e-8
     assert best < 5.0  # generous for a loaded CI machine; measured ~0.2-0.3 s on 2 cores
+
+
+def test_finite_cluster_is_pruned_and_adds_only_its_area_term(frictionless_network):
+    """A self-stressed dimer not connected to the network and not spanning the cell: the
+    relaxation undoes its affine deformation, so it adds only -tr(G) σ_dimer (its static
+    stress over the cell area, zero in equilibrium) to dσ/dG: it is pruned, nothing changes."""
+    snap = frictionless_network
+    free_space = dataclasses.replace(
+        snap, cell_lengths=[30.0, 30.0], rod_position=[[10.0, 10.0], [11.0, 11.1]],
+        rod_angle=[0.0, 0.05], pair_i=[], pair_j=[], pair_shift=np.zeros((0, 2)),
+        tangential_spring=np.zeros((0, 2)), sliding=[],
+    )  # fmt: skip
+    dimer = minimise_energy(free_space)
+    dimer = relax(dimer, dimer)
+    assert dimer.n_pairs >= 2
+    n, n_s = snap.n_rods, snap.n_spheres
+    extended = dataclasses.replace(
+        snap,
+        rod_position=np.vstack([snap.rod_position, dimer.rod_position - 9.0]),
+        rod_angle=np.concatenate([snap.rod_angle, dimer.rod_angle]),
+        pair_i=np.append(snap.pair_i, dimer.pair_i + n * n_s),
+        pair_j=np.append(snap.pair_j, dimer.pair_j + n * n_s),
+        pair_shift=np.vstack([snap.pair_shift, dimer.pair_shift]),
+        tangential_spring=np.vstack([snap.tangential_spring, dimer.tangential_spring]),
+        sliding=np.append(snap.sliding, dimer.sliding),
+    )
+    reference = linear_response(snap)
+    response = linear_response(extended)
+    assert {n, n + 1} <= set(response.rattlers.tolist())
+    pairs = forcelaw.pair_forces(dimer)
+    dimer_stress = np.einsum("pa,pb->ab", pairs.force, pairs.branch) / np.prod(snap.cell_lengths)
+    # self-stressed (attraction balanced by contact and repulsion), yet its virial vanishes:
+    # Σ f ⊗ l = Σ_P F_P ⊗ X_P = 0 for a finite cluster in equilibrium
+    assert np.abs(pairs.normal_force).max() > 0.05
+    assert np.abs(dimer_stress).max() < 1e-12 * np.abs(reference.stress).max()
+    expected = reference.tangent.reshape(4, 4) - np.outer(dimer_stress.ravel(), [1, 0, 0, 1])
+    np.testing.assert_allclose(
+        response.tangent.reshape(4, 4), expected, rtol=0, atol=1e-9 * reference.e_oed_v
+    )
+    assert response.solver.pinned_rods.size == 1 and not response.solver.regularised
