@@ -4,8 +4,9 @@ Integer variables keep their integer dtype (a missing integer is the schema's fi
 ``encoding["_FillValue"]``); float variables hold NaN where a record lacked them. The history's
 ``stage`` codes are also given as labels in the coordinate ``stage_label``.
 
-A history whose writer is still running is locked by HDF5; the readers then load a copy of the
-file (the records synced so far), so progress can be watched while a run goes on.
+A running history can be read at any time: the default (CDF5) history has no lock; an HDF5
+(``NETCDF4``) file still open in its writer is locked by HDF5, and the readers then load a copy of
+it (the records synced so far).
 """
 
 from __future__ import annotations

@@ -74,11 +74,9 @@ def clean_attribute(key: str, value: Any) -> Any:
         array = np.asarray(value)
         if array.ndim == 1 and array.dtype.kind in "iuf":
             return array
-        if array.ndim == 1 and array.dtype.kind == "U":
-            return [str(v) for v in array]
     raise TypeError(
         f"attribute {key!r}: value {value!r} of type {type(value).__name__} cannot be stored; "
-        "use str, int, float or a 1D numeric sequence"
+        "use str, int, float or a 1D numeric sequence (join strings into one str)"
     )
 
 
