@@ -195,7 +195,7 @@ class Simulation:
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
         self._real = self.runtime.numpy_real
-        self._stage = "other"
+        self._stage = "gas"
         self._rates = np.zeros(2)
         self._control = CellControl.fixed()
         self._last_stress: np.ndarray | None = None
