@@ -35,20 +35,22 @@ The terms proportional to the current forces (N/ρ, T/ρ, dh × f, and in the st
 Relaxation and stiffness (all exact at first order):
     dR = -H dq + Γ dG = 0  ->  dq = H⁻¹ Γ dG
     dσ/dG = D_G + D_q H⁻¹ Γ,  D_G = -σ ⊗ I + (1/A) Σ ∂(f ⊗ l)/∂G|_affine,  D_q = (1/A) Σ ∂(f ⊗ l)/∂q
-For conservative forces D_q = Γᵀ/A (up to sign) and this is the familiar
+For conservative forces (no tangential springs) H is symmetric, D_q = Γᵀ/A (both are mixed
+second derivatives of the energy, since A σ = -∂U/∂G), and this is the familiar
 C = (1/A)[Born term - Γᵀ H⁻¹ Γ] plus the stress terms.
 
 Zero modes: (i) rods with at most one active pair are pruned iteratively (exact: in equilibrium
 such a pair carries no force and the dangling rod follows its partner, so it adds nothing to the
 relaxed response; a rod with no pair is a rattler), then clusters that do not span the periodic
 cell (found by unwrapping image labels along the pairs) are pruned too (exact: relaxation undoes
-their affine displacement, so they add only their static stress to the -tr(G) σ area term);
+their affine displacement, so they add only their static stress to the -tr(G) σ area term, and
+that stress Σ f ⊗ l = Σ_P F_P ⊗ X_P vanishes for a finite cluster in equilibrium);
 (ii) the rigid translations of every remaining cluster are removed exactly by pinning the
 translation of its best-connected rod (every pair exerts equal and opposite forces, so the rows
-of the pinned DOFs follow from the others); DOFs with a zero row
-and column of H (below 1e-12 of the largest row sum, e.g. the spin of single-disc bodies without
-friction) are left out; (iii) the reduced H is factorised with SuperLU; if it is exactly
-singular (other floppy modes), H + η s I is used with η = ``regularisation`` (relative) and
+of the pinned DOFs follow from the others); DOFs with a zero row and column of H (below 1e-12 of
+the largest row sum, e.g. the spin of single-disc bodies without friction) are left out;
+(iii) the reduced H is factorised with SuperLU; if it is exactly singular (other floppy modes),
+H + η s I is used with η = ``regularisation`` (relative) and
 s = max|diag H|: modes that the strain does not excite drop out as η -> 0 and the flag
 ``regularised`` is set in :class:`SolverInfo` (modes that it does excite make the response blow
 up like 1/η: such a network is not rigid, and the residual/size of the result shows it).

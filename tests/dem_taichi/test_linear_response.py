@@ -352,6 +352,20 @@ def test_frictionless_stiffness_equals_relaxed_probe(frictionless_network):
     assert response.solver.stress_asymmetry < 1e-8
 
 
+def test_frictionless_matrices_are_energy_second_derivatives(frictionless_network):
+    """Conservative forces: H symmetric and D_q = Γᵀ/A (mixed derivatives of U, A σ = -∂U/∂G)."""
+    matrices = network_matrices(frictionless_network, prune_rattlers=False)
+    hessian = matrices.hessian.toarray()
+    np.testing.assert_allclose(hessian, hessian.T, rtol=0, atol=1e-12 * np.abs(hessian).max())
+    area = np.prod(frictionless_network.cell_lengths)
+    np.testing.assert_allclose(
+        matrices.stress_dof,
+        matrices.strain_coupling.T / area,
+        rtol=0,
+        atol=1e-12 * np.abs(matrices.stress_dof).max(),
+    )
+
+
 def test_frictionless_tangent_has_major_symmetry(frictionless_network):
     """Conservative forces: M_abcd = δ_cd σ_ab + T_abcd - σ_ad δ_bc is the second derivative of
     the relaxed energy per reference area with respect to G, hence symmetric (ab) <-> (cd)."""
