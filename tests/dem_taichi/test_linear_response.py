@@ -46,6 +46,8 @@ def find_pairs(position, angle, cell, n_s, spacing, diameter, reach):
 def interaction_reach(snap):
     g_max = snap.f_max / np.where(snap.k_a > 0, snap.k_a, 1.0)
     reach = float(np.max(g_max)) if np.any(snap.charge != 0) else 0.0
+    if snap.vdw_k > 0.0:
+        reach = max(reach, snap.vdw_f_max / snap.vdw_k)
     return reach + 1e-9
 
 
@@ -60,15 +62,16 @@ def with_pairs(snap, position, angle):
     )  # fmt: skip
 
 
-def random_rods(n_rods, n_s, seed, fraction, charge, f_max=1.0, k_a=2.0, k_n=1e3):
+def random_rods(n_rods, n_s, seed, fraction, charge, f_max=1.0, k_a=2.0, k_n=1e3, vdw=(0.0, 0.0)):
     rng = np.random.default_rng(seed)
     side = np.sqrt(n_rods * n_s * np.pi / 4 / fraction)
     cell = np.array([side * 1.1, side / 1.1])
     return NetworkSnapshot(
         cell_lengths=cell, rod_position=rng.uniform(0, 1, (n_rods, 2)) * cell,
         rod_angle=rng.uniform(0, np.pi, n_rods), n_spheres=n_s, spacing=1.0, diameter=1.0,
-        disc_mass=1.0, charge=list(charge), f_max=[f_max] * n_s, k_a=[k_a] * n_s, k_n=k_n,
-        k_t=0.0, mu=0.5, vdw_f_max=0.0, vdw_k=0.0, pair_i=np.zeros(0, int),
+        disc_mass=1.0, charge=list(charge), f_max=np.broadcast_to(f_max, n_s),
+        k_a=np.broadcast_to(k_a, n_s), k_n=k_n, k_t=0.0, mu=0.5, vdw_f_max=vdw[0],
+        vdw_k=vdw[1], pair_i=np.zeros(0, int),
         pair_j=np.zeros(0, int), pair_shift=np.zeros((0, 2)), tangential_spring=np.zeros((0, 2)),
         sliding=np.zeros(0, bool),
     )  # fmt: skip
@@ -613,3 +616,19 @@ def test_finite_cluster_is_pruned_and_adds_only_its_area_term(frictionless_netwo
         response.tangent.reshape(4, 4), expected, rtol=0, atol=1e-9 * reference.e_oed_v
     )
     assert response.solver.pinned_rods.size == 1 and not response.solver.regularised
+
+
+@pytest.mark.slow
+def test_larger_acidic_network_with_van_der_waals_equals_relaxed_probe():
+    """30 rods of 5 discs, edge/inner species (harmonic mixing), vdW on: C = relaxed probe."""
+    snap = random_rods(
+        30, 5, seed=4, fraction=0.9, charge=(1, -1, -1, -1, 1), f_max=[2.0, 1.0, 1.0, 1.0, 2.0],
+        k_a=[4.0, 3.0, 3.0, 3.0, 4.0], vdw=(0.3, 1.5),
+    )  # fmt: skip
+    relaxed = minimise_energy(snap)
+    snap = relax(relaxed, relaxed)
+    pairs = forcelaw.pair_forces(snap)
+    assert np.any(pairs.van_der_waals_force < 0) and np.any(pairs.long_range_force < 0)
+    response = linear_response(snap)
+    print(f"rattlers {response.n_rattlers}, solver {response.solver}")
+    assert_tangent_matches_probe(response, probe_tangent(snap))
