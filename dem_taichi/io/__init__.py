@@ -2,6 +2,19 @@
 
 Imports numpy, netCDF4 and xarray only (never Taichi), so that the bridge can read DEM results
 on machines without Taichi.
+
+Typical use by the engine::
+
+    attrs = provenance_attrs(scene_text, "cpu", "f64", seed, " ".join(sys.argv),
+                             taichi_version=ti.__version__)
+    with HistoryWriter(out / "history.nc", attrs=attrs) as history:
+        history.append(simulation.measure() | {"stage": "A_to_C"})   # one record per output
+        save_checkpoint(checkpoint_path(out, step), simulation.get_state(), {"step": step})
+        rotate_checkpoints(out, keep=2)
+    # exact resume: arrays, meta = load_checkpoint(latest_checkpoint(out)), then
+    # HistoryWriter(out / "history.nc", attrs=attrs, resume=True, resume_after_step=meta["step"])
+
+and by the bridge: ``open_history(path)``, ``open_probes(path)``, ``open_configuration(path)``.
 """
 
 from .checkpoint import (
