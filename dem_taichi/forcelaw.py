@@ -419,12 +419,16 @@ def rod_forces_and_torques(snapshot: NetworkSnapshot) -> tuple[np.ndarray, np.nd
     rod_j = snapshot.pair_j // snapshot.n_spheres
     lever_i = pairs.contact_point - snapshot.rod_position[rod_i]
     lever_j = pairs.contact_point - snapshot.rod_position[rod_j] - snapshot.pair_shift
-    force = np.zeros((n_rods, 2))
-    torque = np.zeros(n_rods)
-    np.add.at(force, rod_i, pairs.force)
-    np.add.at(force, rod_j, -pairs.force)
-    np.add.at(torque, rod_i, cross(lever_i, pairs.force))
-    np.add.at(torque, rod_j, -cross(lever_j, pairs.force))
+    rods = np.concatenate([rod_i, rod_j])
+    force = np.stack(
+        [
+            np.bincount(rods, np.concatenate([pairs.force[:, a], -pairs.force[:, a]]), n_rods)
+            for a in range(2)
+        ],
+        axis=1,
+    )
+    moments = np.concatenate([cross(lever_i, pairs.force), -cross(lever_j, pairs.force)])
+    torque = np.bincount(rods, moments, n_rods)
     return force, torque
 
 

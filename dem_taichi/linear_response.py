@@ -327,6 +327,18 @@ def _perp(vector: np.ndarray) -> np.ndarray:
     return np.stack([-vector[..., 1], vector[..., 0]], axis=-1)
 
 
+def _scatter_rows(index: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
+    """Sum values (P, 6, C) into rows index (P, 6) of an (n_rows, C) array."""
+    flat = index.ravel()
+    return np.stack(
+        [
+            np.bincount(flat, values[..., c].ravel(), minlength=n_rows)
+            for c in range(values.shape[-1])
+        ],
+        axis=1,
+    )
+
+
 def _active_pairs(pairs: forcelaw.PairForces) -> np.ndarray:
     """Pairs that carry a force or a stiffness (contacts, long-range/vdW within range)."""
     return pairs.in_contact | (pairs.normal_force != 0.0) | (pairs.normal_stiffness != 0.0)
@@ -568,10 +580,8 @@ def network_matrices(
         ),
         shape=(n_dof_all, n_dof_all),
     ).tocsc()
-    gamma = np.zeros((n_dof_all, 4))
-    np.add.at(gamma, dofs, np.einsum("pik,pkc->pic", k_pair, w_strain))
-    d_q = np.zeros((4, n_dof_all))
-    np.add.at(d_q.T, dofs, np.einsum("pak,kj->pja", j_sigma, select) / area)
+    gamma = _scatter_rows(dofs, np.einsum("pik,pkc->pic", k_pair, w_strain), n_dof_all)
+    d_q = _scatter_rows(dofs, np.einsum("pak,kj->pja", j_sigma, select) / area, n_dof_all).T
     geometric = 1.0 if include_geometric else 0.0
     d_g = (
         -geometric * np.outer(stress.ravel(), [1.0, 0.0, 0.0, 1.0])

@@ -632,3 +632,11 @@ def test_larger_acidic_network_with_van_der_waals_equals_relaxed_probe():
     response = linear_response(snap)
     print(f"rattlers {response.n_rattlers}, solver {response.solver}")
     assert_tangent_matches_probe(response, probe_tangent(snap))
+
+
+def test_gas_without_pairs_has_zero_stiffness():
+    snap = small_snapshot(pair_i=[], pair_j=[], pair_shift=np.zeros((0, 2)),
+                          tangential_spring=np.zeros((0, 2)), sliding=[])  # fmt: skip
+    response = linear_response(snap)
+    np.testing.assert_array_equal(response.stiffness, 0.0)
+    assert response.n_rattlers == 2 and response.solver.n_dof == 0
