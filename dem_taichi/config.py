@@ -212,7 +212,7 @@ class Integration(SceneSection):
 class Control(SceneSection):
     SECTION = "control"
     inertial_number_max: float = field(default=1.0e-3, metadata=_range(0.0, 1.0, lo_open=True))
-    servo_gain: float = field(default=0.5, metadata=_range(0.0, 1.0, lo_open=True))
+    servo_gain: float = field(default=1.0, metadata=_range(0.0, 10.0, lo_open=True))
     compression_strain_rate: float = field(default=1.0e-3, metadata=_range(0.0, None, lo_open=True))
     target_specific_volume: float = field(default=2.2, metadata=_range(1.0, None, lo_open=True))
     relax_steps: int = field(default=5000, metadata=_range(0))

@@ -35,7 +35,8 @@ Cell control
 ------------
 Each axis is strain-controlled (prescribed rate, compression positive, 0 = fixed) or
 stress-controlled by a servo, evaluated every ``steps_per_call`` steps:
-ε̇ = ε̇_max · clip(servo_gain · (σ_target − σ)/(0.01 σ_target), −1, 1), with the rate cap
+ε̇ = clip(servo_gain (σ_target − σ)/(C T), −ε̇_max, ε̇_max) with C the affine stiffness of the
+contact network along the axis, T the chunk duration, and the rate cap
 ε̇_max = I_max / (d sqrt(ρ/p_ref)) from the inertial-number limit (p_ref = max(σ_target, p)).
 """
 
@@ -468,22 +469,37 @@ class Simulation:
         self._check_kinetic_energy()
 
     def _rates_for(self, control: CellControl) -> np.ndarray:
+        """Strain rates of the next chunk: prescribed, or from the stress servo.
+
+        Servo (per axis a): ε̇_a = clip(g (σ_target − σ_aa) / (C_aa T), −ε̇_max, ε̇_max), with
+        C_aa = (1/A) Σ_contacts k_n (n_a b_a)² the affine stiffness of the contact network (an
+        upper bound of the true one, so the correction never overshoots for g ≤ 1), T the
+        duration of one chunk (steps_per_call Δt), g = [control] servo_gain and
+        ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p): the inertial-number cap.
+        """
         rates = np.zeros(2)
-        needs_stress = any(a.mode == "stress" for a in (control.x, control.y))
-        stress = None
-        if needs_stress:
-            stress = self._stress_tensor()
-        p = 0.0 if stress is None else 0.5 * (stress[0, 0] + stress[1, 1])
+        if not any(a.mode == "stress" for a in (control.x, control.y)):
+            return np.array([control.x.value, control.y.value], dtype=float)
+        sums = self._measure_sums()
+        stress = self._stress_tensor(sums)
+        area = float(np.prod(self.cell_lengths))
+        stiffness = np.array([sums[L.M_STIFF_XX], sums[L.M_STIFF_YY]]) / area
+        p = 0.5 * (stress[0, 0] + stress[1, 1])
         rho = self.geometry.mass / self.geometry.solid_area
         ctl = self.scene.control
+        chunk_time = self.scene.integration.steps_per_call * self.get_parameter("time_step")
         for axis, ac in enumerate((control.x, control.y)):
             if ac.mode == "strain_rate":
                 rates[axis] = ac.value
                 continue
             p_ref = max(ac.value, p)
             rate_max = ctl.inertial_number_max / (self.geometry.diameter * math.sqrt(rho / p_ref))
-            error = (ac.value - stress[axis, axis]) / (0.01 * ac.value)
-            rates[axis] = rate_max * float(np.clip(ctl.servo_gain * error, -1.0, 1.0))
+            error = ac.value - stress[axis, axis]
+            if stiffness[axis] > 0:
+                rate = ctl.servo_gain * error / (stiffness[axis] * chunk_time)
+            else:
+                rate = math.copysign(rate_max, error)
+            rates[axis] = float(np.clip(rate, -rate_max, rate_max))
         return rates
 
     def run(
