@@ -294,22 +294,31 @@ def radial(
     p_max: float = 200.0,
     p0: float = 5.0,
     increments: int = 100,
+    approach_increments: int = 10,
     params: Parameters = TABLE1,
     options: ModelOptions = DEFAULT_OPTIONS,
     state: State | None = None,
     on_error: str = "raise",
     settings=DEFAULT_SETTINGS,
 ) -> xr.Dataset:
-    """Radial path at constant η = q/p: targets (p, η p) with p geometric from p(start) to p_max.
+    """Radial path at constant η = q/p, stress-controlled.
 
-    The first increment moves from the (isotropic) start onto the ray.
+    From the start state (p, q) the stress first moves at constant p onto the ray q = η p in
+    ``approach_increments`` increments, then p grows geometrically to p_max along the ray in
+    ``increments`` increments (targets (p, η p)).
     """
     if not (isinstance(eta, (int, float)) and math.isfinite(eta) and -1.5 < eta < 3.0):
         raise ParameterError(f"eta = {eta!r} must be a finite stress ratio in (-1.5, 3)")
     start = _start(state, p0, params, options)
     p_max = _check_positive("p_max", p_max)
-    ps = np.geomspace(start.mean_stress, p_max, _check_increments(increments) + 1)[1:]
+    p_start = start.mean_stress
+    q_start = float(start.stress[0] - start.stress[1])
+    qs = np.linspace(q_start, eta * p_start, _check_increments(approach_increments) + 1)[1:]
+    ps = np.geomspace(p_start, p_max, _check_increments(increments) + 1)[1:]
     controls = [
+        Control.triaxial(axial_stress=p_start + 2 * q / 3, radial_stress=p_start - q / 3)
+        for q in qs
+    ] + [
         Control.triaxial(axial_stress=p * (1 + 2 * eta / 3), radial_stress=p * (1 - eta / 3))
         for p in ps
     ]

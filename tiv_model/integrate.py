@@ -410,16 +410,20 @@ def _mixed_step(state: State, control: Control, params, options, settings, guess
     best = math.inf
     last_good = None
     correction = np.zeros(len(u))
+    backtracks = 0
     for _ in range(settings.max_outer_iterations):
         try:
-            new, tangent = _strain_step(state, deps, params, options, settings)
+            # no substepping inside the outer iteration: a failed trial is backtracked here and
+            # the whole increment is halved by ``advance`` (nesting both would cost 2^k solves)
+            new, tangent = _local_solve(state, deps, params, options, settings)
             res = new.stress[u] - target[u]
             rnorm = float(np.max(np.abs(res)))
             failed = not math.isfinite(rnorm)
         except ConvergenceError:
             failed = True
         if failed or (last_good is not None and rnorm > best):
-            if last_good is None:
+            backtracks += 1
+            if last_good is None or backtracks > 12:
                 break
             # backtrack: halve the last correction
             correction *= 0.5

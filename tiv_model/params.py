@@ -297,7 +297,7 @@ class SolverSettings:
     tolerance: float = 1e-11
     stress_tolerance: float = 1e-9
     max_iterations: int = 40
-    max_outer_iterations: int = 30
+    max_outer_iterations: int = 25
     max_halvings: int = 12
     minimum_pressure: float = 1e-6
 
