@@ -138,11 +138,33 @@ _PARAMETER_INDEX = {
 }
 
 _ARRAY_NAMES = (
-    "pos", "angle", "vel", "omega", "force", "torque", "ref_pos", "ref_angle", "offsets",
-    "disc_x", "disc_off", "nbr", "nbr_xi", "nbr_count", "old_nbr", "old_xi", "old_count",
-    "cell_count", "cell_start", "cell_items", "disc_cell", "charge", "pair_table", "cell",
-    "params", "flags",
-)  # fmt: skip
+    "pos",
+    "angle",
+    "vel",
+    "omega",
+    "force",
+    "torque",
+    "ref_pos",
+    "ref_angle",
+    "offsets",
+    "disc_x",
+    "disc_off",
+    "nbr",
+    "nbr_xi",
+    "nbr_count",
+    "old_nbr",
+    "old_xi",
+    "old_count",
+    "cell_count",
+    "cell_start",
+    "cell_items",
+    "disc_cell",
+    "charge",
+    "pair_table",
+    "cell",
+    "params",
+    "flags",
+)
 
 
 def _pair_table(scene: Scene) -> np.ndarray:
@@ -341,7 +363,7 @@ class Simulation:
         from dem_taichi.kernels.step import prime_forces
 
         for _ in range(8):
-            prime_forces(self.physics, *self._args())
+            prime_forces(self.geometry.n_spheres, self.physics, *self._args())
             if not self._handle_flags(0):
                 return
         raise CapacityError("could not build the neighbour list")  # pragma: no cover
@@ -375,8 +397,12 @@ class Simulation:
             )
         real = self.runtime.real
         m = self.n_discs
-        for name, dtype in (("nbr", ti.i32), ("nbr_xi", real), ("old_nbr", ti.i32),
-                            ("old_xi", real)):  # fmt: skip
+        for name, dtype in (
+            ("nbr", ti.i32),
+            ("nbr_xi", real),
+            ("old_nbr", ti.i32),
+            ("old_xi", real),
+        ):
             old = self.a[name].to_numpy()
             new = np.zeros((m, capacity), dtype=old.dtype)
             new[:, : old.shape[1]] = old
@@ -438,25 +464,77 @@ class Simulation:
             todo = n_steps - done
             t0 = _time.perf_counter()
             if self.execution == "serial":
-                K.run_steps_serial(self.physics, todo, *self._args())
+                K.run_steps_serial(self.geometry.n_spheres, self.physics, todo, *self._args())
             else:
                 a = self.a
-                rebuild_args = [a[n] for n in (
-                    "pos", "angle", "ref_pos", "ref_angle", "offsets", "disc_x", "disc_off",
-                    "nbr", "nbr_xi", "nbr_count", "old_nbr", "old_xi", "old_count",
-                    "cell_count", "cell_start", "cell_items", "disc_cell", "cell", "params",
-                    "flags")]  # fmt: skip
-                kick_args = [a[n] for n in (
-                    "pos", "angle", "vel", "omega", "force", "torque", "ref_pos", "ref_angle",
-                    "offsets", "disc_x", "disc_off", "cell", "params", "flags")]  # fmt: skip
-                force_args = [a[n] for n in (
-                    "vel", "omega", "force", "torque", "disc_x", "disc_off", "offsets", "nbr",
-                    "nbr_xi", "nbr_count", "charge", "pair_table", "cell", "params",
-                    "flags")]  # fmt: skip
+                rebuild_args = [
+                    a[n]
+                    for n in (
+                        "pos",
+                        "angle",
+                        "ref_pos",
+                        "ref_angle",
+                        "offsets",
+                        "disc_x",
+                        "disc_off",
+                        "nbr",
+                        "nbr_xi",
+                        "nbr_count",
+                        "old_nbr",
+                        "old_xi",
+                        "old_count",
+                        "cell_count",
+                        "cell_start",
+                        "cell_items",
+                        "disc_cell",
+                        "cell",
+                        "params",
+                        "flags",
+                    )
+                ]
+                kick_args = [
+                    a[n]
+                    for n in (
+                        "pos",
+                        "angle",
+                        "vel",
+                        "omega",
+                        "force",
+                        "torque",
+                        "ref_pos",
+                        "ref_angle",
+                        "offsets",
+                        "disc_x",
+                        "disc_off",
+                        "cell",
+                        "params",
+                        "flags",
+                    )
+                ]
+                force_args = [
+                    a[n]
+                    for n in (
+                        "vel",
+                        "omega",
+                        "force",
+                        "torque",
+                        "disc_x",
+                        "disc_off",
+                        "offsets",
+                        "nbr",
+                        "nbr_xi",
+                        "nbr_count",
+                        "charge",
+                        "pair_table",
+                        "cell",
+                        "params",
+                        "flags",
+                    )
+                ]
                 for _ in range(todo):
-                    K.rebuild_if_needed(*rebuild_args)
-                    K.kick_drift_parallel(*kick_args)
-                    K.forces_parallel(self.physics, *force_args, 1)
+                    K.rebuild_if_needed(self.geometry.n_spheres, *rebuild_args)
+                    K.kick_drift_parallel(self.geometry.n_spheres, *kick_args)
+                    K.forces_parallel(self.geometry.n_spheres, self.physics, *force_args, 1)
             steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
             self.timings["kernel"] += _time.perf_counter() - t0
             grown = self._handle_flags(done)
@@ -559,11 +637,27 @@ class Simulation:
         t0 = _time.perf_counter()
         a = self.a
         measure_sums(
-            self.physics, a["vel"], a["omega"], a["force"], a["torque"], a["disc_x"],
-            a["disc_off"], a["offsets"], a["nbr"], a["nbr_xi"], a["nbr_count"], a["charge"],
-            a["pair_table"], a["cell"], a["params"], a["measures"], a["rod_contacts"],
-            a["pair_out"], a["pair_flags"],
-        )  # fmt: skip
+            self.geometry.n_spheres,
+            self.physics,
+            a["vel"],
+            a["omega"],
+            a["force"],
+            a["torque"],
+            a["disc_x"],
+            a["disc_off"],
+            a["offsets"],
+            a["nbr"],
+            a["nbr_xi"],
+            a["nbr_count"],
+            a["charge"],
+            a["pair_table"],
+            a["cell"],
+            a["params"],
+            a["measures"],
+            a["rod_contacts"],
+            a["pair_out"],
+            a["pair_flags"],
+        )
         sums = a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
         return sums
@@ -780,12 +874,21 @@ class Simulation:
             self._grow(capacity)
         a = self.a
         for key, name in (
-            ("reduced_position", "pos"), ("angle", "angle"), ("velocity", "vel"),
-            ("angular_velocity", "omega"), ("force", "force"), ("torque", "torque"),
-            ("ref_position", "ref_pos"), ("ref_angle", "ref_angle"), ("neighbours", "nbr"),
-            ("tangential_spring", "nbr_xi"), ("neighbour_count", "nbr_count"),
-            ("cell", "cell"), ("flags", "flags"), ("params", "params"),
-        ):  # fmt: skip
+            ("reduced_position", "pos"),
+            ("angle", "angle"),
+            ("velocity", "vel"),
+            ("angular_velocity", "omega"),
+            ("force", "force"),
+            ("torque", "torque"),
+            ("ref_position", "ref_pos"),
+            ("ref_angle", "ref_angle"),
+            ("neighbours", "nbr"),
+            ("tangential_spring", "nbr_xi"),
+            ("neighbour_count", "nbr_count"),
+            ("cell", "cell"),
+            ("flags", "flags"),
+            ("params", "params"),
+        ):
             a[name].from_numpy(np.ascontiguousarray(state[key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
@@ -794,7 +897,15 @@ class Simulation:
         # disc positions are derived: recompute them from the centroids
         from dem_taichi.kernels.step import place_all_discs
 
-        place_all_discs(a["pos"], a["angle"], a["offsets"], a["disc_x"], a["disc_off"], a["cell"])
+        place_all_discs(
+            self.geometry.n_spheres,
+            a["pos"],
+            a["angle"],
+            a["offsets"],
+            a["disc_x"],
+            a["disc_off"],
+            a["cell"],
+        )
 
     def set_parameters(self, **values: float) -> None:
         """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""

@@ -103,17 +103,16 @@ def sign(x):
 
 
 @ti.func
-def place_rod_discs(r, pos: T, angle: T, offsets: T, disc_x: T, disc_off: T, lx, ly):
+def place_rod_discs(ns: T, r, pos: T, angle: T, offsets: T, disc_x: T, disc_off: T, lx, ly):
     """Absolute disc positions of rod r from its reduced centroid and angle."""
     place_rod_discs_cs(
-        r, pos, ti.cos(angle[r]), ti.sin(angle[r]), offsets, disc_x, disc_off, lx, ly
+        ns, r, pos, ti.cos(angle[r]), ti.sin(angle[r]), offsets, disc_x, disc_off, lx, ly
     )
 
 
 @ti.func
-def place_rod_discs_cs(r, pos: T, c, s, offsets: T, disc_x: T, disc_off: T, lx, ly):
+def place_rod_discs_cs(ns: T, r, pos: T, c, s, offsets: T, disc_x: T, disc_off: T, lx, ly):
     """As place_rod_discs with the axis (c, s) = (cos θ, sin θ) given."""
-    ns = offsets.shape[0]
     cx = pos[r, 0] * lx
     cy = pos[r, 1] * ly
     for k in range(ns):
@@ -130,17 +129,34 @@ def place_rod_discs_cs(r, pos: T, c, s, offsets: T, disc_x: T, disc_off: T, lx, 
 # neighbour list (serial code: call it from inside a serial loop)
 @ti.func
 def rebuild_lists(
-    pos: T, angle: T, ref_pos: T, ref_angle: T, offsets: T, disc_x: T, disc_off: T,
-    nbr: T, nbr_xi: T, nbr_count: T, old_nbr: T, old_xi: T, old_count: T,
-    cell_count: T, cell_start: T, cell_items: T, disc_cell: T, cell: T, params: T, flags: T,
-):  # fmt: skip
+    ns: T,
+    pos: T,
+    angle: T,
+    ref_pos: T,
+    ref_angle: T,
+    offsets: T,
+    disc_x: T,
+    disc_off: T,
+    nbr: T,
+    nbr_xi: T,
+    nbr_count: T,
+    old_nbr: T,
+    old_xi: T,
+    old_count: T,
+    cell_count: T,
+    cell_start: T,
+    cell_items: T,
+    disc_cell: T,
+    cell: T,
+    params: T,
+    flags: T,
+):
     """Cell-list build of the half Verlet list; carries ξ of surviving pairs; flags overflow.
 
     The old list is moved to the ``old_*`` buffers once (``F_OLD_SAVED``) so that a build that
     overflowed can be repeated after the host grew the capacity, without losing any ξ.
     """
     n_rods = pos.shape[0]
-    ns = offsets.shape[0]
     n_discs = n_rods * ns
     capacity = nbr.shape[1]
     lx = cell[C_LX]
@@ -155,7 +171,7 @@ def rebuild_lists(
         for r in range(n_rods):
             pos[r, 0] -= ti.floor(pos[r, 0])
             pos[r, 1] -= ti.floor(pos[r, 1])
-            place_rod_discs(r, pos, angle, offsets, disc_x, disc_off, lx, ly)
+            place_rod_discs(ns, r, pos, angle, offsets, disc_x, disc_off, lx, ly)
         flags[F_OLD_SAVED] = 1
     r_list = params[P_RLIST]
     r_list2 = r_list * r_list
@@ -253,10 +269,23 @@ def needs_rebuild(cell: T, params: T, flags: T):
 # pair interaction
 @ti.func
 def pair_interaction(
-    phys: ti.template(), update: ti.template(), i, k,
-    vel: T, omega: T, disc_x: T, disc_off: T, offsets: T, nbr: T, nbr_xi: T, charge: T,
-    pair_table: T, cell: T, params: T,
-):  # fmt: skip
+    ns: T,
+    phys: ti.template(),
+    update: ti.template(),
+    i,
+    k,
+    vel: T,
+    omega: T,
+    disc_x: T,
+    disc_off: T,
+    offsets: T,
+    nbr: T,
+    nbr_xi: T,
+    charge: T,
+    pair_table: T,
+    cell: T,
+    params: T,
+):
     """Force on disc i from its k-th list neighbour j (inter-rod, half list).
 
     Returns (F_x, F_y, τ_i, τ_j, j, active, f_contact_normal, f_tangential, δ, U_contact, U_long,
@@ -264,7 +293,6 @@ def pair_interaction(
     centroid branch vector X_P − X_Q − shift. ``update``: advance ξ by v_t Δt (time step) or just
     read it (measures).
     """
-    ns = offsets.shape[0]
     lx = cell[C_LX]
     ly = cell[C_LY]
     packed = nbr[i, k]
@@ -375,16 +403,32 @@ def pair_interaction(
 
 @ti.func
 def disc_forces(
-    phys: ti.template(), atomic: ti.template(), i,
-    vel: T, omega: T, force: T, torque: T, disc_x: T, disc_off: T, offsets: T, nbr: T,
-    nbr_xi: T, nbr_count: T, charge: T, pair_table: T, cell: T, params: T, flags: T,
-):  # fmt: skip
+    ns: T,
+    phys: ti.template(),
+    atomic: ti.template(),
+    update: ti.template(),
+    i,
+    vel: T,
+    omega: T,
+    force: T,
+    torque: T,
+    disc_x: T,
+    disc_off: T,
+    offsets: T,
+    nbr: T,
+    nbr_xi: T,
+    nbr_count: T,
+    charge: T,
+    pair_table: T,
+    cell: T,
+    params: T,
+    flags: T,
+):
     """Add the forces of all list pairs of disc i to both rods.
 
     ``atomic``: scatter with atomic adds (parallel loops); otherwise plain read-modify-write,
     valid only inside a serial loop (several times cheaper for float64).
     """
-    ns = offsets.shape[0]
     rod_i = i // ns
     max_overlap = params[P_MAX_OVERLAP]
     sum_fx = 0.0
@@ -392,9 +436,23 @@ def disc_forces(
     sum_tau = 0.0
     for k in range(nbr_count[i]):
         fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = pair_interaction(
-            phys, True, i, k, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi, charge,
-            pair_table, cell, params,
-        )  # fmt: skip
+            ns,
+            phys,
+            update,
+            i,
+            k,
+            vel,
+            omega,
+            disc_x,
+            disc_off,
+            offsets,
+            nbr,
+            nbr_xi,
+            charge,
+            pair_table,
+            cell,
+            params,
+        )
         if active == 1:
             rod_j = j // ns
             sum_fx += fx
@@ -426,9 +484,23 @@ def disc_forces(
 # integration of one rod
 @ti.func
 def kick_drift_rod(
-    r, pos: T, angle: T, vel: T, omega: T, force: T, torque: T, ref_pos: T, ref_angle: T,
-    offsets: T, disc_x: T, disc_off: T, cell: T, params: T, flags: T,
-):  # fmt: skip
+    ns: T,
+    r,
+    pos: T,
+    angle: T,
+    vel: T,
+    omega: T,
+    force: T,
+    torque: T,
+    ref_pos: T,
+    ref_angle: T,
+    offsets: T,
+    disc_x: T,
+    disc_off: T,
+    cell: T,
+    params: T,
+    flags: T,
+):
     """Kick (damped force), drift, zero the force, place the discs; returns (disp, speed)."""
     dt = params[P_DT]
     alpha = params[P_ALPHA]
@@ -457,7 +529,7 @@ def kick_drift_rod(
     force[r, 0] = 0.0
     force[r, 1] = 0.0
     torque[r] = 0.0
-    place_rod_discs_cs(r, pos, ti.cos(theta), ti.sin(theta), offsets, disc_x, disc_off, lx, ly)
+    place_rod_discs_cs(ns, r, pos, ti.cos(theta), ti.sin(theta), offsets, disc_x, disc_off, lx, ly)
     max_offset = params[P_MAX_OFFSET]
     ddx = (pos[r, 0] - ref_pos[r, 0]) * lx
     ddy = (pos[r, 1] - ref_pos[r, 1]) * ly
@@ -482,55 +554,145 @@ def advance_cell(cell: T, params: T):
 # kernels
 @ti.kernel
 def run_steps_serial(
-    phys: ti.template(), n_steps: ti.i32,
-    pos: nd, angle: nd, vel: nd, omega: nd, force: nd, torque: nd, ref_pos: nd, ref_angle: nd,
-    offsets: nd, disc_x: nd, disc_off: nd,
-    nbr: nd, nbr_xi: nd, nbr_count: nd, old_nbr: nd, old_xi: nd, old_count: nd,
-    cell_count: nd, cell_start: nd, cell_items: nd, disc_cell: nd,
-    charge: nd, pair_table: nd, cell: nd, params: nd, flags: nd,
-):  # fmt: skip
+    ns: ti.template(),
+    phys: ti.template(),
+    n_steps: ti.i32,
+    pos: nd,
+    angle: nd,
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    ref_pos: nd,
+    ref_angle: nd,
+    offsets: nd,
+    disc_x: nd,
+    disc_off: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    old_nbr: nd,
+    old_xi: nd,
+    old_count: nd,
+    cell_count: nd,
+    cell_start: nd,
+    cell_items: nd,
+    disc_cell: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+):
     """``n_steps`` fused time steps in one serial loop (one thread, no launch per step)."""
     n_rods = pos.shape[0]
-    n_discs = n_rods * offsets.shape[0]
+    n_discs = n_rods * ns
     ti.loop_config(serialize=True)
     for _step in range(n_steps):
         if flags[F_STOP] == 0:
             if needs_rebuild(cell, params, flags):
                 flags[F_FORCE_REBUILD] = 0
                 rebuild_lists(
-                    pos, angle, ref_pos, ref_angle, offsets, disc_x, disc_off,
-                    nbr, nbr_xi, nbr_count, old_nbr, old_xi, old_count,
-                    cell_count, cell_start, cell_items, disc_cell, cell, params, flags,
-                )  # fmt: skip
+                    ns,
+                    pos,
+                    angle,
+                    ref_pos,
+                    ref_angle,
+                    offsets,
+                    disc_x,
+                    disc_off,
+                    nbr,
+                    nbr_xi,
+                    nbr_count,
+                    old_nbr,
+                    old_xi,
+                    old_count,
+                    cell_count,
+                    cell_start,
+                    cell_items,
+                    disc_cell,
+                    cell,
+                    params,
+                    flags,
+                )
             if flags[F_STOP] == 0:
                 advance_cell(cell, params)
                 max_disp = 0.0
                 max_speed = 0.0
                 for r in range(n_rods):
                     disp, speed = kick_drift_rod(
-                        r, pos, angle, vel, omega, force, torque, ref_pos, ref_angle, offsets,
-                        disc_x, disc_off, cell, params, flags,
-                    )  # fmt: skip
+                        ns,
+                        r,
+                        pos,
+                        angle,
+                        vel,
+                        omega,
+                        force,
+                        torque,
+                        ref_pos,
+                        ref_angle,
+                        offsets,
+                        disc_x,
+                        disc_off,
+                        cell,
+                        params,
+                        flags,
+                    )
                     max_disp = ti.max(max_disp, disp)
                     max_speed = ti.max(max_speed, speed)
                 cell[C_DISP] = max_disp
                 cell[C_VMAX] = max_speed
                 for i in range(n_discs):
                     disc_forces(
-                        phys, False, i, vel, omega, force, torque, disc_x, disc_off, offsets, nbr,
-                        nbr_xi, nbr_count, charge, pair_table, cell, params, flags,
-                    )  # fmt: skip
+                        ns,
+                        phys,
+                        False,
+                        True,
+                        i,
+                        vel,
+                        omega,
+                        force,
+                        torque,
+                        disc_x,
+                        disc_off,
+                        offsets,
+                        nbr,
+                        nbr_xi,
+                        nbr_count,
+                        charge,
+                        pair_table,
+                        cell,
+                        params,
+                        flags,
+                    )
                 cell[C_TIME] += params[P_DT]
                 flags[F_STEPS] += 1
 
 
 @ti.kernel
 def rebuild_if_needed(
-    pos: nd, angle: nd, ref_pos: nd, ref_angle: nd, offsets: nd, disc_x: nd, disc_off: nd,
-    nbr: nd, nbr_xi: nd, nbr_count: nd, old_nbr: nd, old_xi: nd, old_count: nd,
-    cell_count: nd, cell_start: nd, cell_items: nd, disc_cell: nd,
-    cell: nd, params: nd, flags: nd,
-):  # fmt: skip
+    ns: ti.template(),
+    pos: nd,
+    angle: nd,
+    ref_pos: nd,
+    ref_angle: nd,
+    offsets: nd,
+    disc_x: nd,
+    disc_off: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    old_nbr: nd,
+    old_xi: nd,
+    old_count: nd,
+    cell_count: nd,
+    cell_start: nd,
+    cell_items: nd,
+    disc_cell: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+):
     """Parallel path, part 1 (serial): list rebuild when needed, then advance the cell."""
     ti.loop_config(serialize=True)
     for _ in range(1):
@@ -538,10 +700,28 @@ def rebuild_if_needed(
             if needs_rebuild(cell, params, flags):
                 flags[F_FORCE_REBUILD] = 0
                 rebuild_lists(
-                    pos, angle, ref_pos, ref_angle, offsets, disc_x, disc_off,
-                    nbr, nbr_xi, nbr_count, old_nbr, old_xi, old_count,
-                    cell_count, cell_start, cell_items, disc_cell, cell, params, flags,
-                )  # fmt: skip
+                    ns,
+                    pos,
+                    angle,
+                    ref_pos,
+                    ref_angle,
+                    offsets,
+                    disc_x,
+                    disc_off,
+                    nbr,
+                    nbr_xi,
+                    nbr_count,
+                    old_nbr,
+                    old_xi,
+                    old_count,
+                    cell_count,
+                    cell_start,
+                    cell_items,
+                    disc_cell,
+                    cell,
+                    params,
+                    flags,
+                )
             if flags[F_STOP] == 0:
                 advance_cell(cell, params)
                 cell[C_DISP] = 0.0
@@ -550,33 +730,93 @@ def rebuild_if_needed(
 
 @ti.kernel
 def kick_drift_parallel(
-    pos: nd, angle: nd, vel: nd, omega: nd, force: nd, torque: nd, ref_pos: nd, ref_angle: nd,
-    offsets: nd, disc_x: nd, disc_off: nd, cell: nd, params: nd, flags: nd,
-):  # fmt: skip
+    ns: ti.template(),
+    pos: nd,
+    angle: nd,
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    ref_pos: nd,
+    ref_angle: nd,
+    offsets: nd,
+    disc_x: nd,
+    disc_off: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+):
     """Parallel path, part 2: kick and drift of every rod (parallel over rods)."""
     for r in range(pos.shape[0]):
         if flags[F_STOP] == 0:
             disp, speed = kick_drift_rod(
-                r, pos, angle, vel, omega, force, torque, ref_pos, ref_angle, offsets,
-                disc_x, disc_off, cell, params, flags,
-            )  # fmt: skip
+                ns,
+                r,
+                pos,
+                angle,
+                vel,
+                omega,
+                force,
+                torque,
+                ref_pos,
+                ref_angle,
+                offsets,
+                disc_x,
+                disc_off,
+                cell,
+                params,
+                flags,
+            )
             ti.atomic_max(cell[C_DISP], disp)
             ti.atomic_max(cell[C_VMAX], speed)
 
 
 @ti.kernel
 def forces_parallel(
-    phys: ti.template(), vel: nd, omega: nd, force: nd, torque: nd, disc_x: nd, disc_off: nd,
-    offsets: nd, nbr: nd, nbr_xi: nd, nbr_count: nd, charge: nd, pair_table: nd, cell: nd,
-    params: nd, flags: nd, count_step: ti.i32,
-):  # fmt: skip
+    ns: ti.template(),
+    phys: ti.template(),
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    disc_x: nd,
+    disc_off: nd,
+    offsets: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+    count_step: ti.i32,
+):
     """Parallel path, part 3: pair forces (parallel over discs, atomic scatter to rods)."""
     for i in range(disc_x.shape[0]):
         if flags[F_STOP] == 0:
             disc_forces(
-                phys, True, i, vel, omega, force, torque, disc_x, disc_off, offsets, nbr, nbr_xi,
-                nbr_count, charge, pair_table, cell, params, flags,
-            )  # fmt: skip
+                ns,
+                phys,
+                True,
+                True,
+                i,
+                vel,
+                omega,
+                force,
+                torque,
+                disc_x,
+                disc_off,
+                offsets,
+                nbr,
+                nbr_xi,
+                nbr_count,
+                charge,
+                pair_table,
+                cell,
+                params,
+                flags,
+            )
     if count_step == 1 and flags[F_STOP] == 0:
         cell[C_TIME] += params[P_DT]
         flags[F_STEPS] += 1
@@ -584,66 +824,126 @@ def forces_parallel(
 
 @ti.kernel
 def prime_forces(
+    ns: ti.template(),
     phys: ti.template(),
-    pos: nd, angle: nd, vel: nd, omega: nd, force: nd, torque: nd, ref_pos: nd, ref_angle: nd,
-    offsets: nd, disc_x: nd, disc_off: nd,
-    nbr: nd, nbr_xi: nd, nbr_count: nd, old_nbr: nd, old_xi: nd, old_count: nd,
-    cell_count: nd, cell_start: nd, cell_items: nd, disc_cell: nd,
-    charge: nd, pair_table: nd, cell: nd, params: nd, flags: nd,
-):  # fmt: skip
+    pos: nd,
+    angle: nd,
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    ref_pos: nd,
+    ref_angle: nd,
+    offsets: nd,
+    disc_x: nd,
+    disc_off: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    old_nbr: nd,
+    old_xi: nd,
+    old_count: nd,
+    cell_count: nd,
+    cell_start: nd,
+    cell_items: nd,
+    disc_cell: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+):
     """Place the discs, build the list (when needed) and compute the forces, without moving."""
     n_rods = pos.shape[0]
-    n_discs = n_rods * offsets.shape[0]
+    n_discs = n_rods * ns
     ti.loop_config(serialize=True)
     for _ in range(1):
         for r in range(n_rods):
-            place_rod_discs(r, pos, angle, offsets, disc_x, disc_off, cell[C_LX], cell[C_LY])
+            place_rod_discs(ns, r, pos, angle, offsets, disc_x, disc_off, cell[C_LX], cell[C_LY])
         if needs_rebuild(cell, params, flags):
             flags[F_FORCE_REBUILD] = 0
             rebuild_lists(
-                pos, angle, ref_pos, ref_angle, offsets, disc_x, disc_off,
-                nbr, nbr_xi, nbr_count, old_nbr, old_xi, old_count,
-                cell_count, cell_start, cell_items, disc_cell, cell, params, flags,
-            )  # fmt: skip
+                ns,
+                pos,
+                angle,
+                ref_pos,
+                ref_angle,
+                offsets,
+                disc_x,
+                disc_off,
+                nbr,
+                nbr_xi,
+                nbr_count,
+                old_nbr,
+                old_xi,
+                old_count,
+                cell_count,
+                cell_start,
+                cell_items,
+                disc_cell,
+                cell,
+                params,
+                flags,
+            )
         if flags[F_STOP] == 0:
             for r in range(n_rods):
                 force[r, 0] = 0.0
                 force[r, 1] = 0.0
                 torque[r] = 0.0
             for i in range(n_discs):
-                ns = offsets.shape[0]
-                rod_i = i // ns
-                for k in range(nbr_count[i]):
-                    fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
-                        pair_interaction(
-                            phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr,
-                            nbr_xi, charge, pair_table, cell, params,
-                        )
-                    )  # fmt: skip
-                    if active == 1:
-                        rod_j = j // ns
-                        force[rod_i, 0] += fx
-                        force[rod_i, 1] += fy
-                        force[rod_j, 0] -= fx
-                        force[rod_j, 1] -= fy
-                        torque[rod_i] += tau_i
-                        torque[rod_j] += tau_j
+                disc_forces(
+                    ns,
+                    phys,
+                    False,
+                    False,
+                    i,
+                    vel,
+                    omega,
+                    force,
+                    torque,
+                    disc_x,
+                    disc_off,
+                    offsets,
+                    nbr,
+                    nbr_xi,
+                    nbr_count,
+                    charge,
+                    pair_table,
+                    cell,
+                    params,
+                    flags,
+                )
 
 
 @ti.kernel
 def measure_sums(
+    ns: ti.template(),
     phys: ti.template(),
-    vel: nd, omega: nd, force: nd, torque: nd, disc_x: nd, disc_off: nd, offsets: nd,
-    nbr: nd, nbr_xi: nd, nbr_count: nd, charge: nd, pair_table: nd, cell: nd, params: nd,
-    measures: nd, rod_contacts: nd, pair_out: nd, pair_flags: nd,
-):  # fmt: skip
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    disc_x: nd,
+    disc_off: nd,
+    offsets: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    measures: nd,
+    rod_contacts: nd,
+    pair_out: nd,
+    pair_flags: nd,
+):
     """Serial sums for the measures (deterministic order); also per-entry pair data.
 
     pair_out (M,K,4): F_x, F_y, f_contact_normal, f_tangential of each list entry;
     pair_flags (M,K): bit 0 contact, bit 1 long-range active, bit 2 sliding, bit 3 interacting.
     """
     n_rods = vel.shape[0]
-    ns = offsets.shape[0]
     n_discs = n_rods * ns
     ti.loop_config(serialize=True)
     for _ in range(1):
@@ -667,10 +967,24 @@ def measure_sums(
             for k in range(nbr_count[i]):
                 fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
                     pair_interaction(
-                        phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi,
-                        charge, pair_table, cell, params,
+                        ns,
+                        phys,
+                        False,
+                        i,
+                        k,
+                        vel,
+                        omega,
+                        disc_x,
+                        disc_off,
+                        offsets,
+                        nbr,
+                        nbr_xi,
+                        charge,
+                        pair_table,
+                        cell,
+                        params,
                     )
-                )  # fmt: skip
+                )
                 bits = 0
                 if active == 1:
                     measures[M_SXX] += fx * bx
@@ -709,7 +1023,9 @@ def measure_sums(
 
 
 @ti.kernel
-def place_all_discs(pos: nd, angle: nd, offsets: nd, disc_x: nd, disc_off: nd, cell: nd):
+def place_all_discs(
+    ns: ti.template(), pos: nd, angle: nd, offsets: nd, disc_x: nd, disc_off: nd, cell: nd
+):
     """Recompute the (derived) disc positions from the centroids, e.g. after a state restore."""
     for r in range(pos.shape[0]):
-        place_rod_discs(r, pos, angle, offsets, disc_x, disc_off, cell[C_LX], cell[C_LY])
+        place_rod_discs(ns, r, pos, angle, offsets, disc_x, disc_off, cell[C_LX], cell[C_LY])

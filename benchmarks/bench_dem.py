@@ -1,0 +1,178 @@
+"""Throughput of the DEM engine (not a test): steps/s and disc-steps/s.
+
+Cases: the paper-size scene (1520 rods of 5 discs) with contact only and with acidic long-range
+forces, serial (fused multi-step kernel) and parallel (per-step kernels) execution, the
+deterministic mode, and the growth of the cost with the number of rods (4 sizes). Each case is
+timed on a packing prepared by the engine itself: gas -> strain-controlled compression -> stress
+servo at ``--pressure`` (jammed, Z of a few), then timed during a slow strain-controlled
+compression (ε̇ = 1e-4, so the neighbour lists are rebuilt as in a real loading path).
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_dem.py            # full table (several minutes)
+    .venv/bin/python benchmarks/bench_dem.py --quick    # paper scene only, fewer steps
+    .venv/bin/python benchmarks/bench_dem.py --arch gpu # on a CUDA machine
+
+Writes benchmarks/results/dem_bench.csv (and prints the table, with a profile of the serial
+step: force evaluation, list rebuild, kick/drift).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from dem_taichi.config import load_scene  # noqa: E402
+from dem_taichi.engine import CellControl, Simulation  # noqa: E402
+from dem_taichi.kernels import layout  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def prepared_state(scene, arch, pressure, max_steps):
+    """Gas -> stress servo at ``pressure`` (fast: inertial-number cap 0.05) until it holds."""
+    fast = scene.replace(control={"inertial_number_max": 0.05}, integration={"local_damping": 0.5})
+    sim = Simulation(fast, arch=arch)
+    m = {}
+    while sim.step < max_steps:
+        m = sim.run(1000, control=CellControl.stress(pressure), output_every=1000)
+        if abs(m["mean_stress"] / pressure - 1) < 0.02 and m["coordination_number"] > 2:
+            break
+    return sim.get_state(), m
+
+
+def time_case(scene, arch, execution, deterministic, state, n_steps):
+    sim = Simulation(scene, arch=arch, execution=execution, deterministic=deterministic)
+    sim.set_state(state)
+    control = CellControl.strain_rate(1e-4)
+    sim.run(min(200, n_steps), control=control, output_every=10**12)  # compile + warm up
+    rebuilds0 = int(sim.get_state()["flags"][layout.F_REBUILDS])
+    kernel0 = sim.timings["kernel"]
+    t0 = time.perf_counter()
+    sim.run(n_steps, control=control, output_every=10**12)
+    wall = time.perf_counter() - t0
+    rebuilds = int(sim.get_state()["flags"][layout.F_REBUILDS]) - rebuilds0
+    m = sim.measure()
+    return {
+        "steps_per_s": n_steps / wall,
+        "disc_steps_per_s": n_steps * sim.n_discs / wall,
+        "kernel_share": (sim.timings["kernel"] - kernel0) / wall,
+        "rebuild_every": n_steps / max(rebuilds, 1),
+        "n_contacts": m["n_contacts"],
+        "n_long_range_pairs": m["n_long_range_pairs"],
+        "coordination": m["coordination_number"],
+        "specific_volume": m["specific_volume"],
+        "list_capacity": sim.capacity,
+        "sim": sim,
+    }
+
+
+def profile_serial(sim, repeats=200):
+    """Per-step cost of the parts of the serial step, timed with the priming kernel."""
+    from dem_taichi.kernels.step import prime_forces
+
+    state = sim.get_state()
+    args = sim._args()
+    prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+    sim.a["flags"].to_numpy()
+    force = (time.perf_counter() - t0) / repeats
+    flags = sim.a["flags"]
+    t0 = time.perf_counter()
+    for _ in range(repeats // 4):
+        f = flags.to_numpy()
+        f[layout.F_FORCE_REBUILD] = 1
+        flags.from_numpy(f)
+        prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+    sim.a["flags"].to_numpy()
+    rebuild_and_force = (time.perf_counter() - t0) / (repeats // 4)
+    sim.set_state(state)
+    return force, rebuild_and_force - force
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"))
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--steps", type=int, default=4000)
+    parser.add_argument("--pressure", type=float, default=10.0)
+    parser.add_argument("--out", default=str(RESULTS / "dem_bench.csv"))
+    args = parser.parse_args()
+    paper = load_scene("paper").replace(integration={"steps_per_call": 500})
+    cases = []
+    sizes = [1520] if args.quick else [200, 600, 1520, 4000]
+    for long_range in (False, True):
+        for n_rods in sizes:
+            scene = paper.replace(particles={"n_rods": n_rods}, long_range={"enabled": long_range})
+            t0 = time.perf_counter()
+            state, m = prepared_state(scene, args.arch, args.pressure, 60_000)
+            print(
+                f"prepared {n_rods} rods (long range {long_range}) in "
+                f"{time.perf_counter() - t0:.1f} s: v = {m['specific_volume']:.3f}, "
+                f"p = {m['mean_stress']:.3g}, Z = {m['coordination_number']:.2f}",
+                flush=True,
+            )
+            executions = [("serial", False)]
+            if n_rods == 1520:
+                executions += [("parallel", False), ("serial", True)]
+            for execution, deterministic in executions:
+                if args.arch == "gpu" and execution == "serial" and not deterministic:
+                    execution = "parallel"
+                n_steps = args.steps if execution == "serial" else max(args.steps // 4, 500)
+                r = time_case(scene, args.arch, execution, deterministic, state, n_steps)
+                row = {
+                    "arch": args.arch,
+                    "n_rods": n_rods,
+                    "n_discs": n_rods * scene.particles.n_spheres,
+                    "long_range": "acidic" if long_range else "off",
+                    "execution": execution + (" deterministic" if deterministic else ""),
+                    "steps_per_s": round(r["steps_per_s"], 1),
+                    "disc_steps_per_s": round(r["disc_steps_per_s"]),
+                    "rebuild_every_steps": round(r["rebuild_every"], 1),
+                    "coordination": round(r["coordination"], 2),
+                    "n_contacts": r["n_contacts"],
+                    "n_long_range_pairs": r["n_long_range_pairs"],
+                    "specific_volume": round(r["specific_volume"], 3),
+                    "list_capacity": r["list_capacity"],
+                }
+                if execution == "serial" and not deterministic and args.arch == "cpu":
+                    force, rebuild = profile_serial(r["sim"])
+                    row["force_us_per_step"] = round(force * 1e6, 1)
+                    row["rebuild_us_each"] = round(rebuild * 1e6, 1)
+                    row["step_us"] = round(1e6 / r["steps_per_s"], 1)
+                cases.append(row)
+                print(row, flush=True)
+    keys = []
+    for row in cases:
+        keys += [k for k in row if k not in keys]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("w", newline="") as stream:
+        stream.write(f"# bench_dem.py on {platform.node()} ({os.cpu_count()} cpus), "
+                     f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, pressure "
+                     f"{args.pressure}, {args.steps} steps, numpy {np.__version__}\n")  # fmt: skip
+        writer = csv.DictWriter(stream, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(cases)
+    print(f"\nwritten {out}")
+    header = ["n_rods", "long_range", "execution", "steps_per_s", "disc_steps_per_s",
+              "rebuild_every_steps", "coordination", "step_us", "force_us_per_step",
+              "rebuild_us_each"]  # fmt: skip
+    print(" | ".join(header))
+    for row in cases:
+        print(" | ".join(str(row.get(h, "")) for h in header))
+
+
+if __name__ == "__main__":
+    main()
