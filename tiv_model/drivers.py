@@ -370,3 +370,34 @@ def concatenate(datasets: list[xr.Dataset], names: list[str]) -> xr.Dataset:
     terms = [ds.attrs.get("termination", "completed") for ds in datasets]
     out.attrs["termination"] = next((t for t in terms if t != "completed"), "completed")
     return out
+
+
+def k0_then_unload(
+    sigma_v_max: float = 250.0,
+    p0: float = 5.0,
+    increments: int = 100,
+    q_final: float = 0.0,
+    unload_increments: int = 50,
+    params: Parameters = TABLE1,
+    options: ModelOptions = DEFAULT_OPTIONS,
+    on_error: str = "raise",
+    settings=DEFAULT_SETTINGS,
+) -> xr.Dataset:
+    """The study's path A→C→B: K0 loading to σ_v,max, then constant-p unloading to q_final.
+
+    One dataset with the integer variable ``stage`` (0 = k0, 1 = constant_p_unloading).
+    """
+    start = _start(None, p0, params, options)
+    sigma_v_max = _check_positive("sigma_v_max", sigma_v_max)
+    targets = np.geomspace(float(start.stress[0]), sigma_v_max, _check_increments(increments) + 1)
+    controls = [Control.triaxial(axial_stress=s, radial_strain_increment=0.0) for s in targets[1:]]
+    states, term = run_path(start, controls, params, options, settings, on_error)
+    loading = to_dataset(states, params, options, "TIV oedometric (K0) loading", "k0", term)
+    if term is not None:
+        return concatenate([loading], ["k0"])
+    unloading = constant_p_unloading(
+        states[-1], q_final, unload_increments, params, options, on_error, settings
+    )
+    out = concatenate([loading, unloading], ["k0", "constant_p_unloading"])
+    out.attrs["title"] = "TIV K0 loading then constant-p unloading"
+    return out
