@@ -40,6 +40,14 @@ def stage_labels(history: xr.Dataset) -> np.ndarray:
     return np.array([lookup.get(int(s), str(s)) for s in stage])
 
 
+def _scalar(conf: xr.Dataset, name: str) -> float:
+    """A scalar of a configuration: a variable of that name, else a global attribute
+    (``write_configuration`` stores p, q and the state label as attributes)."""
+    if name in conf.variables:
+        return float(conf[name])
+    return float(conf.attrs[name])
+
+
 def disc_centres(
     rod_position: np.ndarray, rod_angle: np.ndarray, n_spheres: int, spacing: float
 ) -> np.ndarray:
@@ -86,7 +94,8 @@ def figure_paths(
 
     ``configurations`` maps a state label (``"A"``, ``"B"``, …) to a configuration Dataset with
     ``rod_position`` (rod, xy), ``rod_angle`` (rod), ``cell_lengths`` (xy), ``mean_stress`` and
-    ``deviatoric_stress`` scalars. ``geometry`` gives ``n_spheres``, ``spacing``, ``diameter``.
+    ``deviatoric_stress`` scalars (variables or global attributes). ``geometry`` gives
+    ``n_spheres``, ``spacing``, ``diameter``.
     """
     labels = list(configurations)
     ncols = max(len(labels), 1)
@@ -102,7 +111,7 @@ def figure_paths(
         mask = stages == name
         ax.plot(p[mask], q[mask], ".-", ms=2, lw=1, label=name)
     for label, conf in configurations.items():
-        pa, qa = float(conf["mean_stress"]), float(conf["deviatoric_stress"])
+        pa, qa = _scalar(conf, "mean_stress"), _scalar(conf, "deviatoric_stress")
         ax.plot(pa, qa, "ko", ms=5)
         ax.annotate(label, (pa, qa), textcoords="offset points", xytext=(5, 5), fontsize=11)
     ax.set_xlabel("mean stress p = (σxx+σyy)/2 (DEM units)")
@@ -120,7 +129,7 @@ def figure_paths(
             float(geometry["spacing"]),
             float(geometry["diameter"]),
         )
-        sub.set_title(f"state {label}: p = {float(conf['mean_stress']):.3g}")
+        sub.set_title(f"state {label}: p = {_scalar(conf, 'mean_stress'):.3g}")
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path

@@ -1,0 +1,944 @@
+"""Virtual experiments of the study on the DEM engine (model.md §1.6): the loading paths.
+
+Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
+
+1. ``isotropic_to_A`` — from the gas, isotropic strain-controlled compression in increments of
+   per-axis logarithmic strain h, each followed by a relaxation at fixed cell. A relaxed state is
+   a candidate for the fluid–solid transition when p > ``pressure_tolerance`` and
+   Z_m ≥ ``coordination_min``. On a candidate found with h > ``min_compression_increment`` the
+   sample is restored to the previous relaxed state and h is halved (bisection of the
+   transition); at the smallest h a candidate becomes **A** when p stays above the tolerance over
+   the next ``confirm_increments`` relaxed increments (then the sample is restored to the
+   candidate). The rule is :func:`dem_taichi.analysis.detect_transition`, which is re-applied
+   to the whole relaxed sequence and recorded (with p, Z_m and the Z_m jump) in the results.
+2. ``A_to_B`` — isotropic stress path, σ_xx = σ_yy = p_k, p_k log-spaced from p_A to
+   ``target_mean_stress`` (state **B**).
+3. ``A_to_C`` — K0 (oedometric) path from A: L_x never changes (ε_xx = ε_xx(A) exactly),
+   σ_yy servoed up log-spaced targets, the last target being p = ``target_mean_stress``
+   (state **C**).
+4. ``C_to_B`` — from C, both axes servoed: p = p_C constant, q decreasing linearly to 0
+   (state **B'**).
+5. ``radial`` — from A (the stored state), p increasing log-spaced to ``target_mean_stress`` at
+   constant η = q/p: σ_yy = p (1 + η/2), σ_xx = p (1 − η/2) (states **R<k>_end**).
+
+Servo at relaxed states (how the stress targets are held). Between relaxed states the cell is
+strain-controlled: a strain correction Δε on the servoed axes is applied at a rate capped by the
+inertial number, ε̇ ≤ I_max sqrt(p/ρ)/d (p the current relaxed mean stress, ρ = rod mass / rod
+area), and the sample is relaxed at fixed cell until UFR < ``relax_unbalanced_force`` and the
+kinetic energy per rod < ``relax_kinetic_energy_per_rod``. The correction solves
+J Δε = t − W σ (quasi-Newton): W maps (σ_xx, σ_yy) to the controlled quantities (σ_xx, σ_yy, or
+p), J = W C is started from the linear-response stiffness C of the relaxed network and
+updated by Broyden's rule with the measured secant responses. A target is reached when
+|t − Wσ|/|t| ≤ ``stress_tolerance`` (1e-3) at a relaxed state; only such states are recorded as
+path states. Quasi-static checks: every history record carries the inertial number and the UFR;
+:class:`ProtocolResult` keeps their maxima per stage.
+
+Outputs in ``out_dir``: ``history.nc`` (every loading output step and every relaxed state),
+``relaxed_states.nc`` (one record per relaxed path state, same schema), ``probes.nc``,
+``configuration_<label>.nc`` at A, B, C, B', R<k>_end, ``figure_paths.png`` (study Figure 1),
+``figure_states.png`` (study Figure 2), ``report.md`` and ``summary.json``.
+
+Symbols: σ stress (force/length, compression positive), p = (σ_xx+σ_yy)/2, q = σ_yy − σ_xx,
+η = q/p, ε logarithmic strain (compression positive), v specific volume, Z_m mechanical
+coordination number, UFR unbalanced-force ratio, I inertial number.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dem_taichi.analysis import Transition, detect_transition
+from dem_taichi.config import Scene, load_scene, scene_to_toml
+from dem_taichi.protocol_config import (
+    ProbingConfig,
+    ProtocolConfig,
+    probing_settings,
+    protocol_settings,
+)
+
+__all__ = [
+    "ProtocolError",
+    "RelaxedState",
+    "StageRecord",
+    "ProtocolResult",
+    "ProtocolRunner",
+    "relax",
+    "apply_strain",
+    "strain_rate_cap",
+    "run_protocol",
+    "main",
+]
+
+
+class ProtocolError(RuntimeError):
+    """A stage could not reach its goal; the message says which and what to change."""
+
+
+@dataclass(frozen=True)
+class RelaxedState:
+    """A relaxed state of a path: its label (``""`` when unlabelled), stage, increment index,
+    stress targets (NaN when not servoed), the measures and whether the relaxation converged."""
+
+    label: str
+    stage: str
+    increment: int
+    targets: tuple[float, float]
+    measures: dict
+    relaxed: bool
+    servo_iterations: int = 0
+
+
+@dataclass
+class StageRecord:
+    """Wall time and quasi-static indicators of one stage."""
+
+    stage: str
+    seconds: float = 0.0
+    steps: int = 0
+    max_inertial_number: float = 0.0
+    max_unbalanced_force_loading: float = 0.0
+    max_unbalanced_force_relaxed: float = 0.0
+    n_relaxed_states: int = 0
+    servo_iterations: int = 0
+    n_loading_checks: int = 0
+    n_loading_checks_above_limit: int = 0
+
+    def note(self, measures: dict, relaxed: bool, ufr_limit: float = math.inf) -> None:
+        """Keep the maxima of I (states with p > 0 only: I is undefined in a gas) and UFR."""
+        i = measures.get("inertial_number", float("nan"))
+        u = measures.get("unbalanced_force_ratio", float("nan"))
+        if math.isfinite(i):
+            self.max_inertial_number = max(self.max_inertial_number, i)
+        if not relaxed:
+            self.n_loading_checks += 1
+            if math.isfinite(u) and u > ufr_limit:
+                self.n_loading_checks_above_limit += 1
+        if math.isfinite(u):
+            if relaxed:
+                self.max_unbalanced_force_relaxed = max(self.max_unbalanced_force_relaxed, u)
+            else:
+                self.max_unbalanced_force_loading = max(self.max_unbalanced_force_loading, u)
+
+
+@dataclass
+class ProtocolResult:
+    """What :func:`run_protocol` did: files, states, the transition, timings."""
+
+    out_dir: Path
+    scene_name: str
+    pattern: str
+    n_rods: int
+    arch: str
+    precision: str
+    transition: Transition | None = None
+    transition_details: dict = field(default_factory=dict)
+    states: dict[str, RelaxedState] = field(default_factory=dict)
+    path_states: list[RelaxedState] = field(default_factory=list)
+    stages: dict[str, StageRecord] = field(default_factory=dict)
+    probes: list = field(default_factory=list)
+    probing_seconds: float = 0.0
+    probing_dynamic_seconds: float = 0.0
+    probing_linear_seconds: float = 0.0
+    total_seconds: float = 0.0
+    files: dict[str, str] = field(default_factory=dict)
+    stress_scale_kpa: float = 1.0
+
+    def summary(self) -> dict:
+        """JSON-serialisable summary (also written to ``summary.json``)."""
+
+        def state(s: RelaxedState) -> dict:
+            keep = (
+                "step", "mean_stress", "deviatoric_stress", "stress_xx", "stress_yy",
+                "strain_xx", "strain_yy", "specific_volume", "fabric_deviator",
+                "mechanical_coordination_number", "coordination_number",
+                "unbalanced_force_ratio",
+            )  # fmt: skip
+            out = {k: _jsonable(s.measures.get(k)) for k in keep}
+            out.update(stage=s.stage, increment=s.increment, relaxed=s.relaxed)
+            out["targets"] = [_jsonable(t) for t in s.targets]
+            return out
+
+        return {
+            "scene": self.scene_name,
+            "pattern": self.pattern,
+            "n_rods": self.n_rods,
+            "arch": self.arch,
+            "precision": self.precision,
+            "stress_scale_kpa": self.stress_scale_kpa,
+            "transition": self.transition_details,
+            "states": {k: state(v) for k, v in self.states.items()},
+            "stages": {k: vars(v) for k, v in self.stages.items()},
+            "probing_seconds": self.probing_seconds,
+            "probing_dynamic_seconds": self.probing_dynamic_seconds,
+            "probing_linear_seconds": self.probing_linear_seconds,
+            "total_seconds": self.total_seconds,
+            "files": self.files,
+        }
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Small building blocks (usable on their own, e.g. by probing.py and tests)
+# ---------------------------------------------------------------------------------------------
+
+
+def strain_rate_cap(sim, mean_stress: float, floor_stress: float, safety: float = 1.0) -> float:
+    """Largest strain rate keeping I = ε̇ d sqrt(ρ/p) ≤ safety · I_max ([control]
+    inertial_number_max).
+
+    ρ = rod mass / rod solid area (2D density); p = max(mean_stress, floor_stress) (DEM units).
+    """
+    geo = sim.geometry
+    rho = geo.mass / geo.solid_area
+    p = max(float(mean_stress), float(floor_stress))
+    i_max = safety * sim.scene.control.inertial_number_max
+    return i_max * math.sqrt(p / rho) / geo.diameter
+
+
+def _control(stage: str, rate_x: float, rate_y: float):
+    from dem_taichi.engine import CellControl
+
+    return CellControl.strain_rate(rate_x, rate_y, stage=stage)
+
+
+def relax(
+    sim,
+    stage: str,
+    unbalanced_force: float,
+    kinetic_energy_per_rod: float,
+    check_steps: int,
+    max_steps: int,
+    give_up: Callable[[dict, int], bool] | None = None,
+) -> tuple[dict, bool, int]:
+    """Run at fixed cell until UFR < ``unbalanced_force`` and KE/N < ``kinetic_energy_per_rod``.
+
+    Checks every ``check_steps`` steps, stops after ``max_steps``; ``give_up(measures, steps)``
+    may end it early (returns not relaxed). Returns (measures, relaxed, steps run).
+    """
+    steps = 0
+    measures: dict = {}
+    control = _control(stage, 0.0, 0.0)
+    while steps < max_steps:
+        n = min(check_steps, max_steps - steps)
+        measures = sim.run(n, control, output_every=n)
+        steps += n
+        ufr = measures["unbalanced_force_ratio"]
+        ke = measures["kinetic_energy"] / sim.n_rods
+        if math.isfinite(ufr) and ufr < unbalanced_force and ke < kinetic_energy_per_rod:
+            return measures, True, steps
+        if give_up is not None and give_up(measures, steps):
+            return measures, False, steps
+    return measures, False, steps
+
+
+def apply_strain(
+    sim,
+    strain: tuple[float, float],
+    stage: str,
+    max_rate: float,
+    min_steps: int,
+    writer: Any = None,
+    output_every: int | None = None,
+) -> dict:
+    """Apply the logarithmic strain increments (Δε_xx, Δε_yy) (compression positive) at constant
+    rates, over n = max(min_steps, ceil(max|Δε| / (max_rate dt))) steps; returns the measures.
+
+    The cell then has L = L_0 exp(−Δε) on each axis (the engine integrates L̇ = −ε̇ L exactly).
+    """
+    dt = sim.scene.time_step
+    biggest = max(abs(strain[0]), abs(strain[1]))
+    n = max(int(min_steps), int(math.ceil(biggest / (max_rate * dt))) if biggest > 0 else 0, 1)
+    rates = (strain[0] / (n * dt), strain[1] / (n * dt))
+    control = _control(stage, rates[0], rates[1])
+    return sim.run(n, control, output_every=output_every or n, writer=writer)
+
+
+# ---------------------------------------------------------------------------------------------
+# The protocol
+# ---------------------------------------------------------------------------------------------
+
+
+class ProtocolRunner:
+    """Runs the stages of the protocol on a :class:`dem_taichi.engine.Simulation`.
+
+    Usually driven by :func:`run_protocol`; the stage methods can be called one by one (tests).
+    ``probe_hook(runner, state)`` is called at every relaxed path state that should be probed.
+    """
+
+    def __init__(
+        self,
+        sim,
+        config: ProtocolConfig,
+        probing: ProbingConfig,
+        history=None,
+        relaxed_writer=None,
+        probe_hook: Callable[[ProtocolRunner, RelaxedState], None] | None = None,
+        progress: bool = False,
+    ) -> None:
+        self.sim = sim
+        self.config = config
+        self.probing = probing
+        self.history = history
+        self.relaxed_writer = relaxed_writer
+        self.probe_hook = probe_hook
+        self.progress = progress
+        self.stages: dict[str, StageRecord] = {}
+        self.states: dict[str, RelaxedState] = {}
+        self.path_states: list[RelaxedState] = []
+        self.compression_sequence: list[dict] = []
+        self.transition: Transition | None = None
+        self.transition_details: dict = {}
+        self.state_A: dict | None = None
+        self.state_C: dict | None = None
+        self.configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._since_output = 0
+        self.out_dir: Path | None = None
+        self.checkpoints: dict[str, str] = {}
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _say(self, text: str) -> None:
+        if self.progress:
+            print(text, file=sys.stderr, flush=True)
+
+    def _record(self, stage: str) -> StageRecord:
+        return self.stages.setdefault(stage, StageRecord(stage))
+
+    def _relax(self, stage: str, give_up=None) -> tuple[dict, bool]:
+        c = self.config
+        measures, ok, steps = relax(
+            self.sim,
+            stage,
+            c.relax_unbalanced_force,
+            c.relax_kinetic_energy_per_rod,
+            c.relax_check_steps,
+            c.relax_max_steps,
+            give_up,
+        )
+        self._record(stage).steps += steps
+        self._record(stage).note(measures, True)
+        if self.history is not None:
+            self.history.append(measures)
+        return measures, ok
+
+    def _path_state(
+        self, label: str, stage: str, increment: int, targets, measures, relaxed, iterations=0
+    ) -> RelaxedState:
+        state = RelaxedState(
+            label, stage, increment, tuple(float(t) for t in targets), dict(measures), relaxed,
+            iterations,
+        )  # fmt: skip
+        self.path_states.append(state)
+        self._record(stage).n_relaxed_states += 1
+        if label:
+            self.states[label] = state
+            sim = self.sim
+            self.configurations[label] = (sim.rod_positions(), sim.rod_angles(), sim.cell_lengths)
+            if self.config.save_states and self.out_dir is not None:
+                path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
+                self.checkpoints[label] = str(sim.save_checkpoint(path))
+        if self.relaxed_writer is not None:
+            self.relaxed_writer.append(measures)
+        return state
+
+    def _maybe_probe(self, state: RelaxedState, last: bool) -> None:
+        if self.probe_hook is None or not self.probing.enabled:
+            return
+        n = self.probing.every_n_increments
+        wanted = state.label in self.probing.state_labels or (
+            n > 0 and state.increment > 0 and state.increment % n == 0 and not last
+        )
+        if wanted:
+            self.probe_hook(self, state)
+
+    # -- stage 1 ----------------------------------------------------------------------------
+    def compress_to_transition(self) -> RelaxedState:
+        """Isotropic strain-controlled compression in relaxed increments until state A."""
+        c = self.config
+        sim = self.sim
+        stage = "isotropic_to_A"
+        t0 = time.perf_counter()
+        record = self._record(stage)
+        h = c.compression_increment
+        tol = c.pressure_tolerance
+
+        def gas(measures: dict, steps: int) -> bool:
+            # a state whose (dynamic) pressure is far below the tolerance after a few checks is
+            # clearly not loaded: do not spend the whole relaxation budget on a gas
+            return steps >= 4 * c.relax_check_steps and measures["mean_stress"] < 0.1 * tol
+
+        measures, ok = self._relax(stage, gas)
+        previous = (sim.get_state(), measures)
+        candidate: tuple[dict, dict] | None = None
+        confirmed = 0
+        sequence = self.compression_sequence
+        for increment in range(c.max_compression_increments):
+            p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
+            rate_p = p_now if p_now > tol else 0.0
+            self._load_compression(stage, h, rate_p)
+            measures, ok = self._relax(stage, gas)
+            entry = {
+                "increment": increment,
+                "h": h,
+                "mean_stress": measures["mean_stress"],
+                "mechanical_coordination_number": measures["mechanical_coordination_number"],
+                "specific_volume": measures["specific_volume"],
+                "relaxed": ok,
+                "step": measures["step"],
+            }
+            sequence.append(entry)
+            loaded = ok and measures["mean_stress"] > tol
+            is_candidate = loaded and measures["mechanical_coordination_number"] >= (
+                c.coordination_min
+            )
+            self._say(
+                f"[{stage}] inc {increment} h={h:.4g} v={measures['specific_volume']:.4f} "
+                f"p={measures['mean_stress']:.4g} "
+                f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}"
+            )
+            if candidate is None:
+                if is_candidate and h > c.min_compression_increment * (1 + 1e-12):
+                    sim.set_state(previous[0])
+                    h = max(0.5 * h, c.min_compression_increment)
+                    entry["restored"] = True
+                    continue
+                if is_candidate:
+                    candidate = (sim.get_state(), measures)
+                    confirmed = 0
+                    entry["candidate"] = True
+                    if c.confirm_increments == 0:
+                        break
+                else:
+                    previous = (sim.get_state(), measures)
+                continue
+            if loaded:
+                confirmed += 1
+                if confirmed >= c.confirm_increments:
+                    break
+            else:  # the load relaxed away: not a solid yet
+                entry["candidate_rejected"] = True
+                candidate = None
+                previous = (sim.get_state(), measures)
+        else:
+            raise ProtocolError(
+                f"no fluid–solid transition after {c.max_compression_increments} compression "
+                f"increments (last relaxed p = {measures['mean_stress']:.4g}, Z_m = "
+                f"{measures['mechanical_coordination_number']:.3g}); raise [protocol] "
+                "max_compression_increments or lower pressure_tolerance / coordination_min"
+            )
+        assert candidate is not None
+        sim.set_state(candidate[0])
+        a_measures = candidate[1]
+        # the recorded rule, applied to the relaxed sequence up to the confirmation
+        relaxed_seq = [e for e in sequence if e["relaxed"] and not e.get("restored")]
+        pressure = np.array([e["mean_stress"] for e in relaxed_seq])
+        coordination = np.array([e["mechanical_coordination_number"] for e in relaxed_seq])
+        transition = detect_transition(pressure, coordination, tol, c.coordination_min)
+        self.transition = transition
+        cand_index = next(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
+        last_cand = max(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
+        self.transition_details = {
+            "rule": transition.rule
+            + f"; confirmed over {c.confirm_increments} further relaxed increments; "
+            "increments bisected (sample restored to the previous relaxed state, increment "
+            f"halved) from {c.compression_increment:g} down to {c.min_compression_increment:g}",
+            "pressure_tolerance": tol,
+            "coordination_min": c.coordination_min,
+            "detector_index": transition.index,
+            "protocol_index": last_cand,
+            "detector_agrees": bool(transition.index == last_cand),
+            "first_candidate_index": cand_index,
+            "mean_stress": a_measures["mean_stress"],
+            "mechanical_coordination_number": a_measures["mechanical_coordination_number"],
+            "coordination_jump": float(
+                a_measures["mechanical_coordination_number"]
+                - (relaxed_seq[last_cand - 1]["mechanical_coordination_number"] if last_cand else 0)
+            ),
+            "mean_stress_before": float(relaxed_seq[last_cand - 1]["mean_stress"])
+            if last_cand
+            else float("nan"),
+            "specific_volume": a_measures["specific_volume"],
+            "step": a_measures["step"],
+            "n_increments": len(sequence),
+            "sequence": sequence,
+        }
+        sim.set_strain_reference()
+        a_measures = sim.measure()
+        if self.history is not None:
+            self.history.append(a_measures)
+        state = self._path_state("A", stage, len(sequence), (math.nan, math.nan), a_measures, True)
+        self.state_A = sim.get_state()
+        record.seconds += time.perf_counter() - t0
+        self._say(
+            f"[A] p={a_measures['mean_stress']:.4g} v={a_measures['specific_volume']:.4f} "
+            f"Zm={a_measures['mechanical_coordination_number']:.3f}"
+        )
+        self._maybe_probe(state, last=False)
+        return state
+
+    def _load_compression(self, stage: str, h: float, p_now: float) -> None:
+        c = self.config
+        sim = self.sim
+        rate = c.gas_strain_rate
+        if p_now > 0:
+            rate = min(
+                rate,
+                strain_rate_cap(sim, p_now, c.pressure_tolerance, c.inertial_number_safety),
+            )
+        every = sim.scene.output.every
+        before = sim.step
+        measures = apply_strain(sim, (h, h), stage, rate, c.load_steps_min, self.history, every)
+        self._record(stage).steps += sim.step - before
+        if measures["mean_stress"] <= c.pressure_tolerance:
+            # gas: I = ε̇ d sqrt(ρ/p) is undefined/meaningless; the gas rate cap applies instead
+            measures = dict(measures, inertial_number=float("nan"))
+        self._record(stage).note(measures, False, c.unbalanced_force_max)
+
+    # -- servo ------------------------------------------------------------------------------
+    def _initial_jacobian(self) -> np.ndarray:
+        """dσ/dε (2×2, axial part) of the relaxed network from the linear-response probe."""
+        from dem_taichi.linear_response import linear_response
+
+        try:
+            response = linear_response(self.sim.snapshot(), sliding_contacts="free")
+            c = np.asarray(response.stiffness[:2, :2], dtype=float)
+            if np.all(np.isfinite(c)) and np.linalg.det(c) > 0:
+                return c
+        except Exception:  # noqa: BLE001 - a guess only; fall back below
+            pass
+        p = max(self.sim.measure()["mean_stress"], self.config.pressure_tolerance)
+        return np.array([[20.0 * p, 5.0 * p], [5.0 * p, 20.0 * p]])
+
+    def servo(
+        self,
+        stage: str,
+        axes: tuple[int, ...],
+        weights: np.ndarray,
+        targets: np.ndarray,
+        measures: dict,
+    ) -> tuple[dict, int]:
+        """Reach W σ = targets at a relaxed state by servo-controlled strain rates on ``axes``.
+
+        ``weights`` (n_ctrl × 2) maps (σ_xx, σ_yy) to the controlled quantities; ``axes`` lists
+        the axes (0 = x, 1 = y) driven by the servo (as many as controls), the others are held
+        fixed. Rate law, updated every ``servo_check_steps``: ε̇ = (W C_a)⁻¹ (t − W σ) / T with
+        C_a the columns ``axes`` of the linear-response stiffness C of the network at the start,
+        T = ``servo_time``, each rate capped by the inertial-number limit. When the error is
+        below half the tolerance and UFR below 10 × the relaxation threshold, the cell is fixed
+        and the sample relaxed; the target is reached when the relaxed state is within
+        ``stress_tolerance``. Returns the relaxed measures and the number of such relaxations.
+        """
+        c = self.config
+        sim = self.sim
+        weights = np.atleast_2d(np.asarray(weights, dtype=float))
+        targets = np.atleast_1d(np.asarray(targets, dtype=float))
+        stiffness = self._initial_jacobian()
+        jac = weights @ stiffness[:, list(axes)]
+        try:
+            gain = np.linalg.inv(jac) / c.servo_time
+        except np.linalg.LinAlgError:
+            gain = np.diag(1.0 / np.abs(np.diag(jac))) / c.servo_time
+        steps = 0
+        checks = 0
+        record = self._record(stage)
+        control_axes = list(axes)
+        residual = targets - weights @ np.array([measures["stress_xx"], measures["stress_yy"]])
+        factor = 1.0
+        while steps < c.servo_max_steps:
+            sigma = np.array([measures["stress_xx"], measures["stress_yy"]])
+            residual = targets - weights @ sigma
+            scale = np.abs(targets)
+            ufr = measures["unbalanced_force_ratio"]
+            if np.all(np.abs(residual) <= 0.5 * c.stress_tolerance * scale) and (
+                math.isfinite(ufr) and ufr < 10.0 * c.relax_unbalanced_force
+            ):
+                measures, ok = self._relax(stage)
+                checks += 1
+                sigma = np.array([measures["stress_xx"], measures["stress_yy"]])
+                residual = targets - weights @ sigma
+                if ok and np.all(np.abs(residual) <= c.stress_tolerance * scale):
+                    return measures, checks
+                continue
+            factor = self._rate_factor(factor, ufr)
+            rate_cap = factor * strain_rate_cap(
+                sim, measures["mean_stress"], c.pressure_tolerance, c.inertial_number_safety
+            )
+            rates = np.zeros(2)
+            rates[control_axes] = np.clip(gain @ residual, -rate_cap, rate_cap)
+            measures = sim.run(
+                c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
+            )
+            steps += c.servo_check_steps
+            record.steps += c.servo_check_steps
+            record.note(measures, False, c.unbalanced_force_max)
+            self._output(measures, c.servo_check_steps)
+        raise ProtocolError(
+            f"[{stage}] stress targets {targets.tolist()} not reached within "
+            f"{c.servo_max_steps} steps (residual {residual.tolist()}, tolerance "
+            f"{c.stress_tolerance:g} relative); raise [protocol] servo_max_steps, or lower "
+            "servo_time for a faster servo"
+        )
+
+    def _rate_factor(self, factor: float, ufr: float) -> float:
+        """Halve the loading rate while UFR > ``unbalanced_force_max``; recover ×1.25 below."""
+        if math.isfinite(ufr) and ufr > self.config.unbalanced_force_max:
+            return max(0.5 * factor, 1e-3)
+        return min(1.25 * factor, 1.0)
+
+    def _output(self, measures: dict, steps: int) -> None:
+        """Append loading records to the history every ``[output] every`` steps."""
+        self._since_output += steps
+        if self.history is not None and self._since_output >= self.sim.scene.output.every:
+            self.history.append(measures)
+            self._since_output = 0
+
+    # -- paths ------------------------------------------------------------------------------
+    def _log_targets(self, start: float, end: float, n: int) -> np.ndarray:
+        return start * (end / start) ** (np.arange(1, n + 1) / n)
+
+    def _check_start(self, p_a: float) -> None:
+        if self.config.target_mean_stress <= p_a:
+            raise ProtocolError(
+                f"[protocol] target_mean_stress = {self.config.target_mean_stress:g} is not above "
+                f"p at A = {p_a:.4g}: raise target_mean_stress"
+            )
+
+    def _restore_A(self) -> dict:
+        if self.state_A is None:
+            raise ProtocolError("state A is not known yet: run compress_to_transition first")
+        self.sim.set_state(self.state_A)
+        return self.states["A"].measures
+
+    def isotropic_path(self) -> RelaxedState:
+        """A→B: σ_xx = σ_yy = p_k up to ``target_mean_stress`` (state B)."""
+        stage = "A_to_B"
+        t0 = time.perf_counter()
+        measures = self._restore_A()
+        p_a = measures["mean_stress"]
+        self._check_start(p_a)
+        n = self.config.path_increments
+        state = None
+        for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
+            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array([p, p]), measures)
+            self._record(stage).servo_iterations += it
+            label = "B" if k == n else ""
+            state = self._path_state(label, stage, k, (p, p), measures, True, it)
+            self._say(f"[{stage}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+        self._record(stage).seconds += time.perf_counter() - t0
+        assert state is not None
+        return state
+
+    def k0_path(self) -> RelaxedState:
+        """A→C: ε_xx fixed, σ_yy servoed; the last target is p = ``target_mean_stress`` (C)."""
+        stage = "A_to_C"
+        t0 = time.perf_counter()
+        measures = self._restore_A()
+        p_a = measures["mean_stress"]
+        p_end = self.config.target_mean_stress
+        self._check_start(p_a)
+        n = self.config.path_increments
+        ratio = (p_end / p_a) ** (1.0 / n)
+        state = None
+        k = 0
+        while True:
+            k += 1
+            s_yy = measures["stress_yy"] * ratio
+            k0 = measures["stress_xx"] / measures["stress_yy"]
+            last = 0.5 * s_yy * (1.0 + k0) >= p_end * (1 - 1e-9) or k >= 4 * n
+            if last:  # the final target is on p itself
+                weights, targets = np.array([[0.5, 0.5]]), np.array([p_end])
+                target_pair = (math.nan, math.nan)
+            else:
+                weights, targets = np.array([[0.0, 1.0]]), np.array([s_yy])
+                target_pair = (math.nan, s_yy)
+            measures, it = self.servo(stage, (1,), weights, targets, measures)
+            if last:
+                target_pair = (math.nan, measures["stress_yy"])
+            self._record(stage).servo_iterations += it
+            state = self._path_state("C" if last else "", stage, k, target_pair, measures, True, it)
+            self._say(
+                f"[{stage}] {k} p={measures['mean_stress']:.4g} "
+                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f} "
+                f"fabric={measures['fabric_deviator']:.4f}"
+            )
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+            if last:
+                break
+        self._record(stage).seconds += time.perf_counter() - t0
+        self.state_C = self.sim.get_state()
+        assert state is not None
+        return state
+
+    def unloading_path(self) -> RelaxedState:
+        """C→B: both axes servoed, p = p_C, q decreasing linearly to 0 (state B')."""
+        stage = "C_to_B"
+        t0 = time.perf_counter()
+        if "C" not in self.states or self.state_C is None:
+            raise ProtocolError("state C is not known yet: run k0_path first")
+        self.sim.set_state(self.state_C)
+        measures = self.states["C"].measures
+        p_c, q_c = measures["mean_stress"], measures["deviatoric_stress"]
+        n = self.config.unloading_increments
+        state = None
+        for k in range(1, n + 1):
+            q = q_c * (1.0 - k / n)
+            targets = np.array([p_c - 0.5 * q, p_c + 0.5 * q])
+            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures)
+            self._record(stage).servo_iterations += it
+            label = "B'" if k == n else ""
+            state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
+            self._say(
+                f"[{stage}] {k}/{n} p={measures['mean_stress']:.4g} "
+                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f}"
+            )
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+        self._record(stage).seconds += time.perf_counter() - t0
+        assert state is not None
+        return state
+
+    def radial_path(self, eta: float, index: int) -> RelaxedState:
+        """From A, p log-spaced to ``target_mean_stress`` at constant η (state R<index>_end)."""
+        stage = "radial"
+        t0 = time.perf_counter()
+        measures = self._restore_A()
+        p_a = measures["mean_stress"]
+        self._check_start(p_a)
+        n = self.config.path_increments
+        state = None
+        for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
+            targets = np.array([p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta)])
+            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures)
+            self._record(stage).servo_iterations += it
+            label = f"R{index}_end" if k == n else ""
+            state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
+            self._say(f"[{stage} η={eta:g}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+        self._record(stage).seconds += time.perf_counter() - t0
+        assert state is not None
+        return state
+
+
+# ---------------------------------------------------------------------------------------------
+# Whole run with outputs
+# ---------------------------------------------------------------------------------------------
+
+
+def _with_pattern(scene: Scene, pattern: str | None) -> Scene:
+    if pattern is None or pattern == scene.long_range.pattern:
+        return scene
+    if pattern not in ("acidic", "basic", "neutral"):
+        raise ValueError(f"pattern = {pattern!r}: allowed values are acidic | basic | neutral")
+    return scene.replace(long_range={"pattern": pattern})
+
+
+def _file_label(label: str) -> str:
+    return label.replace("'", "_prime")
+
+
+def run_protocol(
+    scene: Scene | str | Path,
+    out_dir: str | Path,
+    arch: str = "cpu",
+    precision: str = "f64",
+    progress: bool = False,
+    pattern: str | None = None,
+    command: str = "dem_taichi.protocol.run_protocol",
+) -> ProtocolResult:
+    """Run the whole protocol of a scene and write its results to ``out_dir``.
+
+    ``scene`` is a :class:`Scene`, a TOML path or a built-in scene name; ``pattern`` overrides the
+    scene's charge pattern (acidic | basic | neutral). Returns a :class:`ProtocolResult`.
+    """
+    import taichi as ti
+
+    from dem_taichi.engine import Simulation
+    from dem_taichi.io import HistoryWriter, provenance_attrs, write_configuration, write_dataset
+    from dem_taichi.probing import ProbeRecorder, probes_dataset
+
+    start = time.perf_counter()
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    scene = _with_pattern(scene, pattern)
+    config = protocol_settings(scene)
+    probing = probing_settings(scene)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
+    result = ProtocolResult(
+        out_dir=out,
+        scene_name=scene.scene.name,
+        pattern=effective_pattern,
+        n_rods=scene.particles.n_rods,
+        arch=arch,
+        precision=precision,
+        stress_scale_kpa=config.stress_scale_kpa,
+    )
+    attrs = provenance_attrs(
+        scene.source_text or scene_to_toml(scene),
+        arch,
+        precision,
+        scene.scene.seed,
+        command,
+        taichi_version=".".join(str(x) for x in ti.__version__),
+        title="DEM virtual experiments of 2D rod-shaped clay particles: protocol history",
+    )
+    attrs["scene_toml_effective"] = scene_to_toml(scene)
+    attrs["charge_pattern"] = effective_pattern
+    attrs["stress_scale_kpa"] = config.stress_scale_kpa
+    attrs["stress_scale"] = f"one DEM stress unit (force/length) = {config.stress_scale_kpa:g} kPa"
+    attrs["strain_reference"] = (
+        "cell at the start of the run until state A, then the cell at state A"
+    )
+    sim = Simulation(scene, arch=arch, precision=precision)
+    recorder = ProbeRecorder(probing, config)
+    history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20)
+    relaxed_attrs = dict(attrs, title=attrs["title"].replace("history", "relaxed path states"))
+    relaxed = HistoryWriter(out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1)
+    runner = ProtocolRunner(
+        sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress
+    )
+    runner.out_dir = out
+    try:
+        history.append(sim.measure() | {"stage": "gas"})
+        runner.compress_to_transition()
+        if config.run_isotropic:
+            runner.isotropic_path()
+        if config.run_k0:
+            runner.k0_path()
+            if config.run_unloading:
+                runner.unloading_path()
+        for index, eta in enumerate(config.radial_ratios, 1):
+            runner.radial_path(eta, index)
+    finally:
+        history.close()
+        relaxed.close()
+    result.transition = runner.transition
+    result.transition_details = runner.transition_details
+    result.states = runner.states
+    result.path_states = runner.path_states
+    result.stages = runner.stages
+    result.probes = recorder.results
+    result.probing_seconds = recorder.seconds
+    result.probing_dynamic_seconds = recorder.dynamic_seconds
+    result.probing_linear_seconds = recorder.linear_seconds
+    # stage wall times exclude the probes (timed apart by the recorder)
+    for label, path in runner.checkpoints.items():
+        result.files[f"state_{label}"] = path
+    result.files["history"] = str(out / "history.nc")
+    result.files["relaxed_states"] = str(out / "relaxed_states.nc")
+    # configurations at the labelled states, taken when they were reached
+    for label, state in runner.states.items():
+        positions, angles, lengths = runner.configurations[label]
+        m = state.measures
+        geo = sim.geometry
+        path = out / f"configuration_{_file_label(label)}.nc"
+        write_configuration(
+            path,
+            positions,
+            angles,
+            lengths,
+            attrs={
+                "title": f"DEM configuration at state {label}",
+                "state_label": label,
+                "path": state.stage,
+                "step": int(m["step"]),
+                "mean_stress": float(m["mean_stress"]),
+                "deviatoric_stress": float(m["deviatoric_stress"]),
+                "specific_volume": float(m["specific_volume"]),
+                "fabric_deviator": float(m["fabric_deviator"]),
+                "n_spheres": int(geo.n_spheres),
+                "spacing": float(geo.spacing),
+                "diameter": float(geo.diameter),
+                "charge_pattern": effective_pattern,
+                "stress_scale_kpa": float(config.stress_scale_kpa),
+            },
+        )
+        result.files[f"configuration_{label}"] = str(path)
+    if recorder.results:
+        probe_attrs = dict(attrs, title="DEM elastic probes at states of the loading paths")
+        ds = probes_dataset(recorder.results, recorder.amplitudes, probing, probe_attrs)
+        write_dataset(out / "probes.nc", ds)
+        result.files["probes"] = str(out / "probes.nc")
+    result.total_seconds = time.perf_counter() - start
+    _write_figures_and_report(result, sim)
+    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
+    result.files["summary"] = str(out / "summary.json")
+    return result
+
+
+def _write_figures_and_report(result: ProtocolResult, sim) -> None:
+    from dem_taichi.report import write_figures, write_report
+
+    try:
+        result.files.update(write_figures(result, sim.geometry))
+    except Exception as exc:  # noqa: BLE001 - figures must not lose a finished run
+        result.files["figures_error"] = f"{type(exc).__name__}: {exc}"
+    result.files["report"] = str(write_report(result))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m dem_taichi.protocol SCENE --out DIR [--arch] [--precision] [--pattern]``."""
+    parser = argparse.ArgumentParser(
+        prog="python -m dem_taichi.protocol",
+        description="Run the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial) "
+        "with elastic probes; write history, probes, configurations, figures and a report.",
+    )
+    parser.add_argument("scene", help="scene TOML file or built-in name (smoke, default, paper)")
+    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"))
+    parser.add_argument("--precision", default="f64", choices=("f64", "f32"))
+    parser.add_argument(
+        "--pattern", default=None, choices=("acidic", "basic", "neutral"),
+        help="charge pattern (overrides the scene's [long_range] pattern)",
+    )  # fmt: skip
+    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    args = parser.parse_args(argv)
+    command = "python -m dem_taichi.protocol " + " ".join(
+        argv if argv is not None else sys.argv[1:]
+    )
+    result = run_protocol(
+        args.scene,
+        args.out,
+        arch=args.arch,
+        precision=args.precision,
+        progress=not args.quiet,
+        pattern=args.pattern,
+        command=command,
+    )
+    print(f"protocol done in {result.total_seconds:.1f} s; results in {result.out_dir}")
+    for label, state in result.states.items():
+        m = state.measures
+        print(
+            f"  {label:7s} p={m['mean_stress']:.5g} q={m['deviatoric_stress']:.5g} "
+            f"v={m['specific_volume']:.5f} fabric={m['fabric_deviator']:+.4f}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
