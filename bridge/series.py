@@ -1,0 +1,479 @@
+"""DEM results → series of the TIV model, with stated and switchable 2D → 3D conventions.
+
+The DEM is 2D (x horizontal, y vertical, stresses in DEM units, force/length); the TIV model is
+written for 3D tensors in kPa (model.md §3). This module is the only place that maps one onto
+the other, both ways (the inverse builds DEM-schema datasets from model runs, used by the tests
+and by synthetic studies).
+
+Conventions (:class:`Convention`)
+---------------------------------
+Stress (DEM σ_v = σ_yy, σ_h = σ_xx, compression positive, times the stated ``stress_scale_kpa``):
+
+* ``"triaxial"`` (default, the study's "triaxial counterpart"): vertical DEM axis = axial,
+  horizontal = both radial axes, σ_a = S σ_v, σ_r = S σ_h, hence p = (σ_a + 2σ_r)/3 and
+  q = σ_a − σ_r.
+* ``"plane"`` (2D-consistent alternative): the model's invariants take the DEM's 2D values,
+  p = S (σ_v + σ_h)/2 and q = S (σ_v − σ_h); the model's triaxial components are then
+  σ_a = p + 2q/3, σ_r = p − q/3. Inverse: σ_v = (p + q/2)/S, σ_h = (p − q/2)/S.
+
+Fabric: the model's β is signed like the stress deviator (positive when the major stress is
+vertical), the DEM rod-orientation deviator β_yy − β_xx is negative when rods lie down under a
+vertical load, so β_model = −F (β_yy − β_xx) with the stated ``fabric_scale`` F (default 1). The
+same map is used in both conventions.
+
+Elastic moduli: the DEM's 2D stiffness C_ij (Voigt xx, yy, xy) is identified with the in-plane
+block of the model's elastic stiffness D (kPa): E_oed,v = C_yyyy ↔ D_aaaa, E_oed,h = C_xxxx ↔
+D_rrrr, C_xxyy ↔ D_raaa... i.e. the cross term C_12 ↔ D_ra. This is exact for a plane-strain
+reading (ε_zz = 0) as well, so it is the same in both conventions; moduli scale with S.
+
+Paths (DEM stage labels of ``dem_taichi.io.schema.STAGE_CODES``):
+
+* ``isotropic``: state A (last ``isotropic_to_A`` record) then the ``A_to_B`` records;
+* ``k0``: state A then the ``A_to_C`` records (the last one is C);
+* ``unloading``: state C then the ``C_to_B`` records.
+
+Symbols: σ stress (kPa in the model, DEM units in the files), p mean stress, q deviatoric
+stress, η = q/p, v specific volume (1; the DEM's A/A_solid is identified with the model's
+internal variable v, as in the study), β fabric (1), S stress scale (kPa per DEM stress unit),
+F fabric scale (1), E_oed constrained moduli (kPa).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+#: The allowed 2D → 3D conventions.
+CONVENTIONS = ("triaxial", "plane")
+
+#: Model path name -> (DEM stage of the records, DEM stage whose last record starts the path).
+PATHS: dict[str, tuple[str, str]] = {
+    "isotropic": ("A_to_B", "isotropic_to_A"),
+    "k0": ("A_to_C", "isotropic_to_A"),
+    "unloading": ("C_to_B", "A_to_C"),
+}
+
+#: Variables of the history that the series need.
+HISTORY_REQUIRED = ("stage", "stress_xx", "stress_yy", "specific_volume", "fabric_deviator")
+#: Variables of the probes dataset that the series need (plus the moduli of the chosen method).
+PROBES_REQUIRED = ("path", "stress_xx", "stress_yy", "specific_volume", "fabric_deviator")
+PROBE_METHODS = ("linear", "dynamic")
+
+#: name -> (units, long_name) of the variables of a model series.
+SERIES_VARIABLES: dict[str, tuple[str, str]] = {
+    "axial_stress": ("kPa", "model axial stress sigma_a"),
+    "radial_stress": ("kPa", "model radial stress sigma_r"),
+    "mean_stress": ("kPa", "model mean stress p = (sigma_a + 2 sigma_r)/3"),
+    "deviatoric_stress": ("kPa", "model deviatoric stress q = sigma_a - sigma_r"),
+    "stress_ratio": ("1", "stress ratio eta = q/p"),
+    "specific_volume": ("1", "specific volume v (DEM A/A_solid)"),
+    "fabric": ("1", "model fabric beta = -fabric_scale (beta_yy - beta_xx), signed like q"),
+    "dem_stress_xx": ("1", "DEM horizontal stress sigma_xx (DEM units, force/length)"),
+    "dem_stress_yy": ("1", "DEM vertical stress sigma_yy (DEM units, force/length)"),
+    "dem_fabric_deviator": ("1", "DEM rod-orientation fabric deviator beta_yy - beta_xx"),
+    "e_oed_v": ("kPa", "vertical constrained modulus E_oed,v = C_yyyy (model D_aaaa)"),
+    "e_oed_h": ("kPa", "horizontal constrained modulus E_oed,h = C_xxxx (model D_rrrr)"),
+    "e_cross": ("kPa", "cross stiffness C_xxyy (model D_ra)"),
+}
+
+
+class SeriesError(ValueError):
+    """DEM results that cannot be turned into model series (missing variable, path, scale)."""
+
+
+@dataclass(frozen=True)
+class Convention:
+    """The stated mapping between DEM results and the TIV model (see the module docstring).
+
+    name: ``"triaxial"`` (default) or ``"plane"``;
+    stress_scale_kpa: S, kPa per DEM stress unit (force/length), > 0; no default on purpose;
+    fabric_scale: F in β_model = −F (β_yy − β_xx), > 0 (default 1).
+    """
+
+    stress_scale_kpa: float
+    name: str = "triaxial"
+    fabric_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.name not in CONVENTIONS:
+            raise SeriesError(f"convention {self.name!r} is not allowed; use one of {CONVENTIONS}")
+        for key in ("stress_scale_kpa", "fabric_scale"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SeriesError(f"{key} must be a number > 0, got {value!r}")
+            if not (math.isfinite(value) and value > 0):
+                raise SeriesError(f"{key} = {value!r} must be a finite number > 0")
+            object.__setattr__(self, key, float(value))
+
+    # -- stress ----------------------------------------------------------------------------
+    def model_stress(self, stress_yy, stress_xx) -> tuple[np.ndarray, np.ndarray]:
+        """(σ_a, σ_r) in kPa of DEM (σ_yy, σ_xx) in DEM units."""
+        sv = np.asarray(stress_yy, dtype=float) * self.stress_scale_kpa
+        sh = np.asarray(stress_xx, dtype=float) * self.stress_scale_kpa
+        if self.name == "triaxial":
+            return sv, sh
+        p = 0.5 * (sv + sh)
+        q = sv - sh
+        return p + 2.0 * q / 3.0, p - q / 3.0
+
+    def dem_stress(self, axial, radial) -> tuple[np.ndarray, np.ndarray]:
+        """(σ_yy, σ_xx) in DEM units of model (σ_a, σ_r) in kPa (inverse of ``model_stress``)."""
+        sa = np.asarray(axial, dtype=float)
+        sr = np.asarray(radial, dtype=float)
+        if self.name == "triaxial":
+            sv, sh = sa, sr
+        else:
+            p = (sa + 2.0 * sr) / 3.0
+            q = sa - sr
+            sv, sh = p + 0.5 * q, p - 0.5 * q
+        return sv / self.stress_scale_kpa, sh / self.stress_scale_kpa
+
+    # -- fabric ----------------------------------------------------------------------------
+    def model_fabric(self, fabric_deviator) -> np.ndarray:
+        """β_model = −F (β_yy − β_xx)."""
+        return -self.fabric_scale * np.asarray(fabric_deviator, dtype=float)
+
+    def dem_fabric(self, fabric) -> np.ndarray:
+        """β_yy − β_xx = −β_model / F (inverse of :meth:`model_fabric`)."""
+        return -np.asarray(fabric, dtype=float) / self.fabric_scale
+
+    # -- moduli ----------------------------------------------------------------------------
+    def model_modulus(self, modulus) -> np.ndarray:
+        """A DEM modulus (force/length) in kPa."""
+        return np.asarray(modulus, dtype=float) * self.stress_scale_kpa
+
+    def dem_modulus(self, modulus) -> np.ndarray:
+        """A model modulus (kPa) in DEM units."""
+        return np.asarray(modulus, dtype=float) / self.stress_scale_kpa
+
+    def attrs(self) -> dict[str, object]:
+        """Dataset attributes that state the convention."""
+        stress = (
+            "sigma_a = S sigma_yy, sigma_r = S sigma_xx, p = (sigma_a + 2 sigma_r)/3, "
+            "q = sigma_a - sigma_r"
+            if self.name == "triaxial"
+            else "p = S (sigma_yy + sigma_xx)/2, q = S (sigma_yy - sigma_xx), "
+            "sigma_a = p + 2q/3, sigma_r = p - q/3"
+        )
+        return {
+            "convention": self.name,
+            "convention_stress": stress,
+            "stress_scale_kpa": self.stress_scale_kpa,
+            "convention_fabric": "beta_model = -fabric_scale (beta_yy - beta_xx), signed like q",
+            "fabric_scale": self.fabric_scale,
+            "convention_moduli": "E_oed,v = C_yyyy <-> D_aaaa, E_oed,h = C_xxxx <-> D_rrrr, "
+            "C_xxyy <-> D_ra; kPa = S x DEM units",
+        }
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+def _require(ds: xr.Dataset, names, what: str) -> None:
+    missing = [n for n in names if n not in ds.variables]
+    if missing:
+        raise SeriesError(
+            f"{what} lacks variable(s) {missing} needed by the bridge; it has "
+            f"{sorted(str(v) for v in ds.variables)}"
+        )
+
+
+def _stage_labels(history: xr.Dataset) -> np.ndarray:
+    if "stage_label" in history.coords or "stage_label" in history.variables:
+        return np.asarray(history["stage_label"].values, dtype=object).astype(str)
+    stage = history["stage"]
+    if "flag_values" in stage.attrs and "flag_meanings" in stage.attrs:
+        values = np.atleast_1d(stage.attrs["flag_values"]).astype(int)
+        meanings = str(stage.attrs["flag_meanings"]).split()
+        lookup = dict(zip(values.tolist(), meanings, strict=True))
+        return np.array([lookup.get(int(c), "") for c in stage.values], dtype=object).astype(str)
+    if stage.dtype.kind in "OUS":
+        return np.asarray(stage.values).astype(str)
+    raise SeriesError("history variable 'stage' has no flag_values/flag_meanings to decode it")
+
+
+def path_indices(history: xr.Dataset, path: str) -> np.ndarray:
+    """Record indices (along the history's dimension) of a path, its start state first."""
+    if path not in PATHS:
+        raise SeriesError(f"unknown path {path!r}; allowed: {sorted(PATHS)}")
+    _require(history, ("stage",), "history")
+    labels = _stage_labels(history)
+    stage, start_stage = PATHS[path]
+    records = np.flatnonzero(labels == stage)
+    present = sorted(set(labels.tolist()) - {""})
+    if records.size == 0:
+        raise SeriesError(
+            f"path {path!r}: no history records with stage {stage!r}; stages present: {present}"
+        )
+    before = np.flatnonzero((labels == start_stage) & (np.arange(labels.size) < records[0]))
+    if before.size == 0:
+        raise SeriesError(
+            f"path {path!r}: no {start_stage!r} record before the first {stage!r} record, so its "
+            f"start state is unknown; stages present: {present}"
+        )
+    return np.concatenate([[before[-1]], records])
+
+
+def _series_dataset(values: dict[str, np.ndarray], convention: Convention, attrs) -> xr.Dataset:
+    data = {}
+    for name, array in values.items():
+        units, long_name = SERIES_VARIABLES[name]
+        data[name] = (
+            "point",
+            np.asarray(array, dtype=float),
+            {"units": units, "long_name": long_name},
+        )
+    ds = xr.Dataset(data, coords={"point": np.arange(len(next(iter(values.values()))))})
+    ds.attrs.update(convention.attrs())
+    ds.attrs.update(attrs)
+    return ds
+
+
+def _state_values(sv, sh, v, dev, convention: Convention) -> dict[str, np.ndarray]:
+    sa, sr = convention.model_stress(sv, sh)
+    p = (sa + 2.0 * sr) / 3.0
+    q = sa - sr
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eta = np.where(p > 0, q / np.where(p > 0, p, 1.0), np.nan)
+    return {
+        "axial_stress": sa,
+        "radial_stress": sr,
+        "mean_stress": p,
+        "deviatoric_stress": q,
+        "stress_ratio": eta,
+        "specific_volume": np.asarray(v, dtype=float),
+        "fabric": convention.model_fabric(dev),
+        "dem_stress_xx": np.asarray(sh, dtype=float),
+        "dem_stress_yy": np.asarray(sv, dtype=float),
+        "dem_fabric_deviator": np.asarray(dev, dtype=float),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# DEM → model
+# ---------------------------------------------------------------------------------------------
+def path_series(history: xr.Dataset, path: str, convention: Convention) -> xr.Dataset:
+    """Model series (along ``point``) of one path of a DEM history (see the module docstring).
+
+    ``history`` has the history schema (``relaxed_states.nc`` holds only relaxed path states,
+    the full ``history.nc`` also the loading records in between).
+    """
+    _require(history, HISTORY_REQUIRED, "history")
+    idx = path_indices(history, path)
+    dim = history["stress_xx"].dims[0]
+
+    def take(name):
+        return np.asarray(history[name].isel({dim: idx}).values, dtype=float)
+
+    values = _state_values(
+        take("stress_yy"), take("stress_xx"), take("specific_volume"), take("fabric_deviator"),
+        convention,
+    )  # fmt: skip
+    bad = ~np.isfinite(values["mean_stress"]) | ~(values["mean_stress"] > 0)
+    if np.any(bad):
+        raise SeriesError(
+            f"path {path!r}: records {idx[bad].tolist()} have a non-positive or missing mean "
+            "stress; the model needs p > 0"
+        )
+    attrs = {"path": path, "dem_stage": PATHS[path][0], "record_index": idx.astype(np.int64)}
+    return _series_dataset(values, convention, attrs)
+
+
+def history_series(
+    history: xr.Dataset, convention: Convention, paths=tuple(PATHS)
+) -> dict[str, xr.Dataset]:
+    """:func:`path_series` of each path in ``paths``; a missing path fails naming it."""
+    return {path: path_series(history, path, convention) for path in paths}
+
+
+def probe_series(
+    probes: xr.Dataset, path: str, convention: Convention, method: str = "linear"
+) -> xr.Dataset:
+    """Probe states and moduli (kPa) of one path, its start state (A or C) first.
+
+    ``method``: ``"linear"`` (linear-response probes, default; gives the cross term C_xxyy from
+    ``stiffness_tensor_linear`` when present) or ``"dynamic"`` (dynamic probes; no cross term).
+    Probes whose moduli are missing (NaN) are left out.
+    """
+    if method not in PROBE_METHODS:
+        raise SeriesError(f"probe method {method!r} is not allowed; use one of {PROBE_METHODS}")
+    if path not in PATHS:
+        raise SeriesError(f"unknown path {path!r}; allowed: {sorted(PATHS)}")
+    moduli = (f"e_oed_v_{method}", f"e_oed_h_{method}")
+    _require(probes, PROBES_REQUIRED + moduli, "probes dataset")
+    labels = np.asarray(probes["path"].values, dtype=object).astype(str)
+    state_labels = (
+        np.asarray(probes["state_label"].values, dtype=object).astype(str)
+        if "state_label" in probes.variables
+        else np.full(labels.shape, "")
+    )
+    stage, start_stage = PATHS[path]
+    on_path = np.flatnonzero(labels == stage)
+    if path == "unloading":  # C is probed as the last state of A_to_C
+        start = np.flatnonzero(state_labels == "C")
+    else:
+        start = np.flatnonzero((state_labels == "A") | (labels == start_stage))
+    idx = np.concatenate([start[-1:], on_path]) if start.size else on_path
+    present = sorted(set(labels.tolist()))
+    if on_path.size == 0:
+        raise SeriesError(
+            f"path {path!r}: no probes with path {stage!r}; probe paths present: {present}"
+        )
+
+    def take(name):
+        return np.asarray(probes[name].isel(probe=idx).values, dtype=float)
+
+    values = _state_values(
+        take("stress_yy"), take("stress_xx"), take("specific_volume"), take("fabric_deviator"),
+        convention,
+    )  # fmt: skip
+    values["e_oed_v"] = convention.model_modulus(take(moduli[0]))
+    values["e_oed_h"] = convention.model_modulus(take(moduli[1]))
+    if method == "linear" and "stiffness_tensor_linear" in probes.variables:
+        tensor = np.asarray(probes["stiffness_tensor_linear"].isel(probe=idx).values, dtype=float)
+        values["e_cross"] = convention.model_modulus(0.5 * (tensor[:, 0, 1] + tensor[:, 1, 0]))
+    keep = np.isfinite(values["e_oed_v"]) & np.isfinite(values["e_oed_h"])
+    keep &= np.isfinite(values["mean_stress"]) & (values["mean_stress"] > 0)
+    if not np.any(keep):
+        raise SeriesError(f"path {path!r}: no probe with finite {moduli} and p > 0")
+    values = {k: v[keep] for k, v in values.items()}
+    labels_kept = state_labels[idx][keep]
+    attrs = {
+        "path": path,
+        "dem_stage": stage,
+        "probe_method": method,
+        "probe_index": idx[keep].astype(np.int64),
+        "state_labels": " ".join(lab if lab else "-" for lab in labels_kept),
+    }
+    return _series_dataset(values, convention, attrs)
+
+
+def all_probe_series(
+    probes: xr.Dataset, convention: Convention, method: str = "linear", paths=tuple(PATHS)
+) -> dict[str, xr.Dataset]:
+    """:func:`probe_series` of each path in ``paths`` that has probes (others are left out)."""
+    out = {}
+    for path in paths:
+        try:
+            out[path] = probe_series(probes, path, convention, method)
+        except SeriesError as exc:
+            if "no probes with path" not in str(exc):
+                raise
+    if not out:
+        raise SeriesError(f"the probes dataset has no probes on any of the paths {list(paths)}")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# model → DEM (inverse, for synthetic data and round trips)
+# ---------------------------------------------------------------------------------------------
+def dem_state_values(axial, radial, specific_volume, fabric, convention: Convention) -> dict:
+    """History-schema values (DEM units) of model states (kPa, model β): stresses, p and q in
+    the DEM's 2D definitions, v, fabric components with tr β = 1."""
+    sv, sh = convention.dem_stress(axial, radial)
+    dev = convention.dem_fabric(fabric)
+    return {
+        "stress_xx": sh,
+        "stress_yy": sv,
+        "stress_xy": np.zeros_like(sv),
+        "mean_stress": 0.5 * (sv + sh),
+        "deviatoric_stress": sv - sh,
+        "specific_volume": np.asarray(specific_volume, dtype=float),
+        "void_ratio": np.asarray(specific_volume, dtype=float) - 1.0,
+        "fabric_xx": 0.5 * (1.0 - dev),
+        "fabric_yy": 0.5 * (1.0 + dev),
+        "fabric_xy": np.zeros_like(dev),
+        "fabric_deviator": dev,
+    }
+
+
+def history_from_model(
+    paths: dict[str, xr.Dataset], convention: Convention, attrs: dict | None = None
+) -> xr.Dataset:
+    """A DEM-schema history (dimension ``time``) of model path datasets (tiv_model drivers).
+
+    ``paths`` maps ``"isotropic"``, ``"k0"``, ``"unloading"`` to driver datasets; the first
+    step of the isotropic (else the K0) run is written as the A record (stage
+    ``isotropic_to_A``), each path's later steps with its DEM stage. The unloading run must
+    start at the last K0 state (C).
+    """
+    from dem_taichi.io.schema import HISTORY, stage_code
+
+    order = [p for p in ("isotropic", "k0", "unloading") if p in paths]
+    if not order:
+        raise SeriesError(f"no known path among {sorted(paths)}; use {sorted(PATHS)}")
+    first = paths["isotropic"] if "isotropic" in paths else paths["k0"]
+    parts = [(first.isel(step=[0]), "isotropic_to_A")]
+    for name in order:
+        parts.append((paths[name].isel(step=slice(1, None)), PATHS[name][0]))
+    columns: dict[str, list[np.ndarray]] = {}
+    stages: list[np.ndarray] = []
+    for ds, stage in parts:
+        values = dem_state_values(
+            ds["axial_stress"].values, ds["radial_stress"].values,
+            ds["specific_volume"].values, ds["fabric"].values, convention,
+        )  # fmt: skip
+        for key, val in values.items():
+            columns.setdefault(key, []).append(np.atleast_1d(val))
+        stages.append(np.full(ds.sizes["step"], stage_code(stage), dtype=np.int32))
+    n = sum(len(s) for s in stages)
+    data = {}
+    for key, chunks in columns.items():
+        data[key] = ("time", np.concatenate(chunks), HISTORY[key].attrs())
+    data["stage"] = ("time", np.concatenate(stages), HISTORY["stage"].attrs())
+    data["step"] = ("time", np.arange(n, dtype=np.int64), HISTORY["step"].attrs())
+    ds = xr.Dataset(data, coords={"time": ("time", np.arange(n, dtype=float))})
+    ds.attrs.update(attrs or {})
+    ds.attrs["stress_scale_kpa"] = convention.stress_scale_kpa
+    return ds
+
+
+def probes_from_model(
+    states: list[tuple[str, str, float, float, float, float, np.ndarray]],
+    convention: Convention,
+    attrs: dict | None = None,
+) -> xr.Dataset:
+    """A DEM-schema probes dataset of model states.
+
+    ``states``: (state_label, DEM path stage, σ_a, σ_r (kPa), v, β_model, D) with D the model's
+    Mandel 6×6 elastic stiffness (kPa); E_oed,v = D_aa, E_oed,h = D_rr, the 2D tensor
+    [[D_rr, D_ra, 0], [D_ar, D_aa, 0], [0, 0, D_mandel,ar-shear/2]] (Voigt xx, yy, xy) for both
+    methods. Uses the DEM writer's :func:`dem_taichi.io.make_dataset`.
+    """
+    from dem_taichi.io import make_dataset
+
+    n = len(states)
+    if n == 0:
+        raise SeriesError("no probe states given")
+    sa = np.array([s[2] for s in states])
+    sr = np.array([s[3] for s in states])
+    values = dem_state_values(sa, sr, [s[4] for s in states], [s[5] for s in states], convention)
+    d = np.array([np.asarray(s[6], dtype=float) for s in states])
+    tensor = np.zeros((n, 3, 3))
+    tensor[:, 0, 0] = d[:, 1, 1]
+    tensor[:, 1, 1] = d[:, 0, 0]
+    tensor[:, 0, 1] = d[:, 1, 0]
+    tensor[:, 1, 0] = d[:, 0, 1]
+    tensor[:, 2, 2] = 0.5 * d[:, 5, 5]
+    tensor = convention.dem_modulus(tensor)
+    out = {
+        "state_label": np.array([s[0] for s in states], dtype=object),
+        "path": np.array([s[1] for s in states], dtype=object),
+        "step": np.arange(n, dtype=np.int64),
+        "stress_xx": values["stress_xx"],
+        "stress_yy": values["stress_yy"],
+        "mean_stress": values["mean_stress"],
+        "deviatoric_stress": values["deviatoric_stress"],
+        "specific_volume": values["specific_volume"],
+        "fabric_deviator": values["fabric_deviator"],
+        "stiffness_tensor_linear": tensor,
+    }
+    for method in PROBE_METHODS:
+        out[f"e_oed_v_{method}"] = tensor[:, 1, 1]
+        out[f"e_oed_h_{method}"] = tensor[:, 0, 0]
+    merged = dict(attrs or {})
+    merged["stress_scale_kpa"] = convention.stress_scale_kpa
+    return make_dataset(out, attrs=merged)
