@@ -112,11 +112,13 @@ def main():
     paper = load_scene("paper").replace(integration={"steps_per_call": 500})
     cases = []
     sizes = [1520] if args.quick else [200, 600, 1520, 4000]
-    for long_range in (False, True):
-        for n_rods in sizes:
+    plan = [(False, args.pressure, n) for n in sizes] + [(True, args.pressure, n) for n in sizes]
+    plan.append((True, 10 * args.pressure, 1520))  # denser acidic packing (contacts dominate)
+    for long_range, pressure, n_rods in plan:
+        if True:
             scene = paper.replace(particles={"n_rods": n_rods}, long_range={"enabled": long_range})
             t0 = time.perf_counter()
-            state, m = prepared_state(scene, args.arch, args.pressure, 60_000)
+            state, m = prepared_state(scene, args.arch, pressure, 60_000)
             print(
                 f"prepared {n_rods} rods (long range {long_range}) in "
                 f"{time.perf_counter() - t0:.1f} s: v = {m['specific_volume']:.3f}, "
@@ -124,7 +126,7 @@ def main():
                 flush=True,
             )
             executions = [("serial", False)]
-            if n_rods == 1520:
+            if n_rods == 1520 and pressure == args.pressure:
                 executions += [("parallel", False), ("serial", True)]
             for execution, deterministic in executions:
                 if args.arch == "gpu" and execution == "serial" and not deterministic:
@@ -133,6 +135,7 @@ def main():
                 r = time_case(scene, args.arch, execution, deterministic, state, n_steps)
                 row = {
                     "arch": args.arch,
+                    "pressure": pressure,
                     "n_rods": n_rods,
                     "n_discs": n_rods * scene.particles.n_spheres,
                     "long_range": "acidic" if long_range else "off",
@@ -166,7 +169,7 @@ def main():
         writer.writeheader()
         writer.writerows(cases)
     print(f"\nwritten {out}")
-    header = ["n_rods", "long_range", "execution", "steps_per_s", "disc_steps_per_s",
+    header = ["n_rods", "pressure", "long_range", "execution", "steps_per_s", "disc_steps_per_s",
               "rebuild_every_steps", "coordination", "step_us", "force_us_per_step",
               "rebuild_us_each"]  # fmt: skip
     print(" | ".join(header))

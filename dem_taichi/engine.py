@@ -35,8 +35,9 @@ Cell control
 ------------
 Each axis is strain-controlled (prescribed rate, compression positive, 0 = fixed) or
 stress-controlled by a servo, evaluated every ``steps_per_call`` steps:
-ε̇ = clip(servo_gain (σ_target − σ)/(C T), −ε̇_max, ε̇_max) with C the affine stiffness of the
-contact network along the axis, T the chunk duration, and the rate cap
+ε̇ = clip(servo_gain (σ_target − σ)/(C T), −ε̇_max, ε̇_max) with C a stiffness estimate (observed
+secant, bounded by the affine stiffness of the contact network), T the chunk duration, and the
+rate cap
 ε̇_max = I_max / (d sqrt(ρ/p_ref)) from the inertial-number limit (p_ref = max(σ_target, p)).
 """
 
@@ -549,19 +550,40 @@ class Simulation:
     def _rates_for(self, control: CellControl) -> np.ndarray:
         """Strain rates of the next chunk: prescribed, or from the stress servo.
 
-        Servo (per axis a): ε̇_a = clip(g (σ_target − σ_aa) / (C_aa T), −ε̇_max, ε̇_max), with
-        C_aa = (1/A) Σ_contacts k_n (n_a b_a)² the affine stiffness of the contact network (an
-        upper bound of the true one, so the correction never overshoots for g ≤ 1), T the
-        duration of one chunk (steps_per_call Δt), g = [control] servo_gain and
-        ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p): the inertial-number cap.
+        Servo (per axis a): ε̇_a = clip(g (σ_target − σ_aa) / (C_a T), −ε̇_max, ε̇_max), with
+        T the duration of one chunk (steps_per_call Δt), g = [control] servo_gain,
+        ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p) (inertial-number cap),
+        and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the last chunk, bounded
+        above by the affine stiffness of the contact network (1/A) Σ_contacts k_n (n_a b_a)²
+        (so the correction never overshoots a stiff packing for g ≤ 1) and halved, down to
+        1e-4 of it, while the packing does not respond (floppy or cohesive networks).
         """
         rates = np.zeros(2)
         if not any(a.mode == "stress" for a in (control.x, control.y)):
+            self._servo = None
             return np.array([control.x.value, control.y.value], dtype=float)
         sums = self._measure_sums()
         stress = self._stress_tensor(sums)
-        area = float(np.prod(self.cell_lengths))
-        stiffness = np.array([sums[L.M_STIFF_XX], sums[L.M_STIFF_YY]]) / area
+        lengths = self.cell_lengths
+        strain = -np.log(lengths / self.reference_lengths)
+        area = float(np.prod(lengths))
+        affine = np.array([sums[L.M_STIFF_XX], sums[L.M_STIFF_YY]]) / area
+        servo = getattr(self, "_servo", None)
+        if servo is None or servo["control"] != control:
+            servo = {"control": control, "stiffness": affine.copy()}
+        else:
+            for axis in (0, 1):
+                d_strain = strain[axis] - servo["strain"][axis]
+                d_stress = stress[axis, axis] - servo["stress"][axis]
+                floor = 1e-4 * affine[axis]
+                if d_strain != 0.0 and d_stress / d_strain > 0.0:
+                    estimate = d_stress / d_strain
+                else:
+                    estimate = 0.5 * servo["stiffness"][axis]
+                servo["stiffness"][axis] = min(max(estimate, floor), affine[axis])
+        servo["stress"] = np.diag(stress).copy()
+        servo["strain"] = strain
+        self._servo = servo
         p = 0.5 * (stress[0, 0] + stress[1, 1])
         rho = self.geometry.mass / self.geometry.solid_area
         ctl = self.scene.control
@@ -573,8 +595,9 @@ class Simulation:
             p_ref = max(ac.value, p)
             rate_max = ctl.inertial_number_max / (self.geometry.diameter * math.sqrt(rho / p_ref))
             error = ac.value - stress[axis, axis]
-            if stiffness[axis] > 0:
-                rate = ctl.servo_gain * error / (stiffness[axis] * chunk_time)
+            stiffness = servo["stiffness"][axis]
+            if stiffness > 0:
+                rate = ctl.servo_gain * error / (stiffness * chunk_time)
             else:
                 rate = math.copysign(rate_max, error)
             rates[axis] = float(np.clip(rate, -rate_max, rate_max))
