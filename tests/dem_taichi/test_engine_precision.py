@@ -5,7 +5,8 @@ invalidates simulations held by other tests.
 
 Stated tolerance (f32 vs f64, smoke scene, 1000 steps of gas compression from the same gas):
 the cell (prescribed rate; L ← L exp(−ε̇Δt) rounded in f32 at every step) agrees to 1e-4 relative;
-centroids (in cell units, times L) to 1e-3 d; the kinetic energy to 2 % (collisions amplify round-off, the run is chaotic, so the tolerance is on a short run).
+centroids (in cell units, times L) to 1e-3 d; the kinetic energy to 2 % (collisions amplify
+round-off, the run is chaotic, so the tolerance is on a short run).
 """
 
 import json
