@@ -29,9 +29,6 @@ def builtin_schedule(scene: Scene) -> list[tuple[str, int, float]]:
 
     The compression lasts t = ln(v_0 / v_target) / (2 ε̇) (area A ∝ exp(−2 ε̇ t)).
     """
-    from dem_taichi.scene import rod_geometry
-
-    geo = rod_geometry(scene)
     v0 = 1.0 / scene.particles.initial_area_fraction
     target = scene.control.target_specific_volume
     rate = scene.control.compression_strain_rate
@@ -40,7 +37,6 @@ def builtin_schedule(scene: Scene) -> list[tuple[str, int, float]]:
         duration = math.log(v0 / target) / (2.0 * rate)
         stages.append(("isotropic_to_A", int(math.ceil(duration / scene.time_step)), rate))
     stages.append(("relax", scene.control.relax_steps, 0.0))
-    del geo
     return stages
 
 

@@ -223,6 +223,7 @@ class Simulation:
         self._rates = np.zeros(2)
         self._control = CellControl.fixed()
         self._last_stress: np.ndarray | None = None
+        self._servo: dict | None = None
         self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
         self.n_rebuild_calls = 0
         gas = initial if initial is not None else generate_gas(scene)
@@ -555,8 +556,9 @@ class Simulation:
         ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p) (inertial-number cap),
         and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the last chunk, bounded
         above by the affine stiffness of the contact network (1/A) Σ_contacts k_n (n_a b_a)²
-        (so the correction never overshoots a stiff packing for g ≤ 1) and halved, down to
-        1e-4 of it, while the packing does not respond (floppy or cohesive networks).
+        (so the correction never overshoots a stiff packing for g ≤ 1); it softens by at most a
+        factor 2 per chunk (halved while the stress does not move towards the target: floppy or
+        cohesive networks; floor 1e-4 of the affine value) and doubles on an overshoot.
         """
         rates = np.zeros(2)
         if not any(a.mode == "stress" for a in (control.x, control.y)):
@@ -568,21 +570,38 @@ class Simulation:
         strain = -np.log(lengths / self.reference_lengths)
         area = float(np.prod(lengths))
         affine = np.array([sums[L.M_STIFF_XX], sums[L.M_STIFF_YY]]) / area
-        servo = getattr(self, "_servo", None)
+        servo = self._servo
         if servo is None or servo["control"] != control:
-            servo = {"control": control, "stiffness": affine.copy()}
+            servo = {"control": control, "stiffness": affine.copy(), "error": np.zeros(2)}
         else:
             for axis in (0, 1):
+                old = servo["stiffness"][axis]
                 d_strain = strain[axis] - servo["strain"][axis]
                 d_stress = stress[axis, axis] - servo["stress"][axis]
-                floor = 1e-4 * affine[axis]
-                if d_strain != 0.0 and d_stress / d_strain > 0.0:
-                    estimate = d_stress / d_strain
+                error_then = servo["error"][axis]
+                error_now = servo["target"][axis] - stress[axis, axis]
+                if d_strain == 0.0 or error_then == 0.0:
+                    new = old
+                elif error_now * error_then < 0.0:
+                    # overshoot: the estimate was too soft
+                    new = max(d_stress / d_strain, 2.0 * old)
+                elif d_stress / d_strain > 0.0:
+                    # observed secant; soften by at most a factor 2 per chunk
+                    new = max(d_stress / d_strain, 0.5 * old)
                 else:
-                    estimate = 0.5 * servo["stiffness"][axis]
-                servo["stiffness"][axis] = min(max(estimate, floor), affine[axis])
+                    # no response towards the target: floppy or cohesive network
+                    new = 0.5 * old
+                servo["stiffness"][axis] = min(max(new, 1e-4 * affine[axis]), affine[axis])
         servo["stress"] = np.diag(stress).copy()
         servo["strain"] = strain
+        servo["target"] = np.array(
+            [a.value if a.mode == "stress" else 0.0 for a in (control.x, control.y)]
+        )
+        servo["error"] = np.where(
+            [a.mode == "stress" for a in (control.x, control.y)],
+            servo["target"] - np.diag(stress),
+            0.0,
+        )
         self._servo = servo
         p = 0.5 * (stress[0, 0] + stress[1, 1])
         rho = self.geometry.mass / self.geometry.solid_area
@@ -915,6 +934,7 @@ class Simulation:
             a[name].from_numpy(np.ascontiguousarray(state[key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
+        self._servo = None  # the servo's stiffness memory belongs to the replaced trajectory
         params = state["params"]
         self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
         # disc positions are derived: recompute them from the centroids
