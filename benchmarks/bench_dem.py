@@ -40,7 +40,10 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 def prepared_state(scene, arch, pressure, max_steps):
     """Gas -> stress servo at ``pressure`` (fast: inertial-number cap 0.05) until it holds."""
-    fast = scene.replace(control={"inertial_number_max": 0.05}, integration={"local_damping": 0.5})
+    fast = scene.replace(
+        control={"inertial_number_max": 0.05},
+        integration={"local_damping": 0.5, "steps_per_call": 100},
+    )
     sim = Simulation(fast, arch=arch)
     m = {}
     while sim.step < max_steps:
@@ -101,6 +104,42 @@ def profile_serial(sim, repeats=200):
     return force, rebuild_and_force - force
 
 
+def stability(args):
+    """Largest stable dt_safety: jammed packings (p = pressure) run 20 000 steps per value."""
+    from dem_taichi.engine import BlowUpError
+
+    rows = []
+    for long_range in (False, True):
+        scene = load_scene("paper").replace(
+            particles={"n_rods": 300}, long_range={"enabled": long_range}
+        )
+        state, _ = prepared_state(scene, args.arch, args.pressure, 60_000)
+        t_c = scene.contact_duration
+        for safety in (0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5):
+            sim = Simulation(scene, arch=args.arch)
+            sim.set_state(state)
+            sim.set_parameters(time_step=safety * t_c)
+            outcome = "stable"
+            try:
+                m = sim.run(20_000, control=CellControl.stress(args.pressure), output_every=20_000)
+                if abs(m["mean_stress"] / args.pressure - 1) > 0.05:
+                    outcome = f"drifted p = {m['mean_stress']:.3g}"
+            except BlowUpError as error:
+                outcome = "blow-up: " + str(error).split(":")[0]
+            rows.append({"long_range": long_range, "dt_safety": safety, "outcome": outcome})
+            print(rows[-1], flush=True)
+    out = RESULTS / "dem_stability.csv"
+    with out.open("w", newline="") as stream:
+        stream.write(
+            "# bench_dem.py --stability: 300 rods of 5 discs, jammed at p = "
+            f"{args.pressure}, 20000 steps under the stress servo per dt_safety\n"
+        )
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"written {out}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"))
@@ -108,7 +147,11 @@ def main():
     parser.add_argument("--steps", type=int, default=4000)
     parser.add_argument("--pressure", type=float, default=10.0)
     parser.add_argument("--out", default=str(RESULTS / "dem_bench.csv"))
+    parser.add_argument("--stability", action="store_true", help="measure the dt_safety limit")
     args = parser.parse_args()
+    if args.stability:
+        stability(args)
+        return
     paper = load_scene("paper").replace(integration={"steps_per_call": 500})
     cases = []
     sizes = [1520] if args.quick else [200, 600, 1520, 4000]

@@ -554,7 +554,8 @@ class Simulation:
         Servo (per axis a): ε̇_a = clip(g (σ_target − σ_aa) / (C_a T), −ε̇_max, ε̇_max), with
         T the duration of one chunk (steps_per_call Δt), g = [control] servo_gain,
         ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p) (inertial-number cap),
-        and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the last chunk, bounded
+        further capped so that one chunk strains a rod-length branch by at most a tenth of the
+        overlap bound, and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the last chunk, bounded
         above by the affine stiffness of the contact network (1/A) Σ_contacts k_n (n_a b_a)²
         (so the correction never overshoots a stiff packing for g ≤ 1); it softens by at most a
         factor 2 per chunk (halved while the stress does not move towards the target: floppy or
@@ -613,6 +614,9 @@ class Simulation:
                 continue
             p_ref = max(ac.value, p)
             rate_max = ctl.inertial_number_max / (self.geometry.diameter * math.sqrt(rho / p_ref))
+            # at most a tenth of the overlap bound per chunk along a rod-length branch vector
+            max_overlap = self.scene.integration.max_overlap * self.geometry.diameter
+            rate_max = min(rate_max, 0.1 * max_overlap / (self.geometry.length * chunk_time))
             error = ac.value - stress[axis, axis]
             stiffness = servo["stiffness"][axis]
             if stiffness > 0:
