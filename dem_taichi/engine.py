@@ -556,7 +556,8 @@ class Simulation:
         ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p) (inertial-number cap),
         further capped so that one chunk strains a rod-length branch by at most a tenth of the
         overlap bound, and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the
-        last chunk, bounded above by the affine stiffness of the contact network (1/A) Σ_contacts k_n (n_a b_a)²
+        last chunk, bounded above by the affine stiffness of the contact network
+        (1/A) Σ_contacts k_n (n_a b_a)²
         (so the correction never overshoots a stiff packing for g ≤ 1); it softens by at most a
         factor 2 per chunk (halved while the stress does not move towards the target: floppy or
         cohesive networks; floor 1e-4 of the affine value) and doubles on an overshoot.
