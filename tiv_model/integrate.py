@@ -342,6 +342,9 @@ def _local_solve(state: State, strain_increment, params, options, settings):
         norms = problem.norm(res_t)
         ok = np.isfinite(norms) & (norms < (1.0 - 1e-4 * _LINE_SEARCH_STEPS) * norm)
         if not np.any(ok):
+            # stagnation at round-off level (ill-conditioned, e.g. ω β_s² → 3/2): accept when
+            # within 1000 × tolerance, otherwise fail
+            converged = norm < 1e3 * settings.tolerance
             break
         i = int(np.argmax(ok))
         x, res, sig, norm = trials[i], res_t[i], sig_t[i], float(norms[i])
@@ -356,7 +359,20 @@ def _local_solve(state: State, strain_increment, params, options, settings):
         )
     mu = float(x[_MU])
     if mu < -1e3 * settings.tolerance * strain_scale:
-        raise ConvergenceError(f"negative plastic multiplier μ = {mu:.3g}", state)
+        # plastic compaction raises F(v) = (v/N)^X; if |X| (1−n) ε^e_v > 1 it raises the stress
+        # faster than the elastic unloading relieves it and no solution with Δλ ≥ 0 exists
+        index = abs(params.energy_exponent) * (1.0 - params.n) * float(trace(state.elastic_strain))
+        raise ConvergenceError(
+            f"negative plastic multiplier μ = {mu:.3g}; softening index |X|(1−n)ε^e_v = "
+            f"{index:.3g}"
+            + (
+                " ≥ 1: the parameters are unstable here (X = r/((n−1)λ*) too "
+                "large, e.g. n close to 1)"
+                if index >= 1.0
+                else ""
+            ),
+            state,
+        )
     eps, beta, v = x[_E], x[_B], math.exp(float(x[_LNV]))
     with np.errstate(all="ignore"):
         ye = YieldEvaluation(eps, v, beta, params, options)
@@ -381,22 +397,12 @@ def _local_solve(state: State, strain_increment, params, options, settings):
     return new, tangent
 
 
-def _strain_step(state, deps, params, options, settings, depth=0):
-    try:
-        return _local_solve(state, deps, params, options, settings)
-    except ConvergenceError:
-        if depth >= settings.max_halvings:
-            raise
-        half = 0.5 * np.asarray(deps)
-        mid, _ = _strain_step(state, half, params, options, settings, depth + 1)
-        return _strain_step(mid, half, params, options, settings, depth + 1)
-
-
 def _mixed_step(state: State, control: Control, params, options, settings, guess=None) -> State:
     mask = np.array(control.stress_controlled, dtype=bool)
     deps = np.where(mask, 0.0, np.asarray(control.strain_increment, dtype=float))
     if not np.any(mask):
-        return _strain_step(state, deps, params, options, settings)[0]
+        # halving is done by ``advance``; nesting it here too would cost 2^(2k) solves
+        return _local_solve(state, deps, params, options, settings)[0]
     target = np.asarray(control.stress_target, dtype=float)
     u = np.flatnonzero(mask)
     kn = np.flatnonzero(~mask)
@@ -406,11 +412,15 @@ def _mixed_step(state: State, control: Control, params, options, settings, guess
         d = stiffness(state.elastic_strain, state.specific_volume, state.fabric, params, options)
         rhs = target[u] - state.stress[u] - d[np.ix_(u, kn)] @ deps[kn]
         deps[u] = np.linalg.solve(d[np.ix_(u, u)], rhs)
-    scale = settings.stress_tolerance * max(state.mean_stress, float(np.max(np.abs(target))), 1.0)
+    scale = settings.stress_tolerance * max(
+        state.mean_stress, float(np.max(np.abs(target))), settings.minimum_pressure
+    )
     best = math.inf
     last_good = None
     correction = np.zeros(len(u))
     backtracks = 0
+    last_tangent = None
+    local_error = ""
     for _ in range(settings.max_outer_iterations):
         try:
             # no substepping inside the outer iteration: a failed trial is backtracked here and
@@ -419,8 +429,9 @@ def _mixed_step(state: State, control: Control, params, options, settings, guess
             res = new.stress[u] - target[u]
             rnorm = float(np.max(np.abs(res)))
             failed = not math.isfinite(rnorm)
-        except ConvergenceError:
+        except ConvergenceError as exc:
             failed = True
+            local_error = exc.args[0]
         if failed or (last_good is not None and rnorm > best):
             backtracks += 1
             if last_good is None or backtracks > 12:
@@ -435,14 +446,23 @@ def _mixed_step(state: State, control: Control, params, options, settings, guess
             return new
         best = rnorm
         last_good = deps[u].copy()
+        last_tangent = tangent
         try:
             correction = -np.linalg.solve(tangent[np.ix_(u, u)], res)
         except np.linalg.LinAlgError:
             break
         deps[u] = last_good + correction
+    hint = ""
+    if last_tangent is not None:
+        sub = last_tangent[np.ix_(u, u)]
+        if np.min(np.linalg.eigvals(0.5 * (sub + sub.T)).real) <= 0.0:
+            hint = (
+                "; the tangent under this control is not positive (limit point): use strain control"
+            )
     raise ConvergenceError(
         "mixed stress/strain control did not converge (the prescribed stress may be beyond "
-        "what the material can carry, e.g. a stress ratio at or above the critical one)",
+        "what the material can carry, e.g. a stress ratio at or above the critical one"
+        f"{hint})" + (f"; last local failure: {local_error}" if local_error else ""),
         state,
     )
 
