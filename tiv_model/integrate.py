@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import triaxial as triaxial_path
 from .dissipation import (
     YieldEvaluation,
     dissipation_rate,
@@ -398,6 +399,9 @@ def _local_solve(state: State, strain_increment, params, options, settings):
 
 
 def _mixed_step(state: State, control: Control, params, options, settings, guess=None) -> State:
+    if settings.triaxial_fast_path and triaxial_path.is_axisymmetric(state, control):
+        model = triaxial_path.model_for(params, options)
+        return triaxial_path.mixed_step(model, state, control, settings, guess)
     mask = np.array(control.stress_controlled, dtype=bool)
     deps = np.where(mask, 0.0, np.asarray(control.strain_increment, dtype=float))
     if not np.any(mask):

@@ -292,6 +292,8 @@ class SolverSettings:
     max_iterations:     Newton iterations per local solve
     max_halvings:       how many times an increment may be halved before giving up
     minimum_pressure:   p_min (kPa): a state with p below it is rejected
+    triaxial_fast_path: use the scalar axisymmetric solver (:mod:`tiv_model.triaxial`) when
+                        state and control are axisymmetric (same equations, ~20× faster)
     """
 
     tolerance: float = 1e-11
@@ -300,6 +302,7 @@ class SolverSettings:
     max_outer_iterations: int = 25
     max_halvings: int = 12
     minimum_pressure: float = 1e-6
+    triaxial_fast_path: bool = True
 
     def __post_init__(self) -> None:
         for name in ("tolerance", "stress_tolerance", "minimum_pressure"):
