@@ -1,0 +1,177 @@
+"""The protocol on the smoke scene: transition A, servo targets, K0 and constant-p paths, outputs.
+
+One module-scoped run of the whole protocol (reduced increments, probes at B only) feeds the
+tests; each checks a property the method must have, against exact values where there are some
+(ε_xx along K0 is exactly that of A because L_x is never changed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import MappingProxyType
+
+import numpy as np
+import pytest
+
+from dem_taichi.analysis import detect_transition
+from dem_taichi.config import load_scene
+from dem_taichi.io import open_configuration, open_history, open_probes
+from dem_taichi.io.schema import PROBE_VARIABLES, stage_code
+
+TOL = 1e-3
+
+
+def smoke_protocol_scene(**protocol):
+    base = load_scene("smoke")
+    settings = dict(
+        target_mean_stress=20.0,
+        pressure_tolerance=2.0,
+        path_increments=2,
+        unloading_increments=2,
+        radial_stress_ratios="0.4",
+        relax_unbalanced_force=1e-4,
+        servo_max_steps=400_000,
+    )
+    settings.update(protocol)
+    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+
+    extensions = {
+        "protocol": ProtocolConfig(**settings),
+        "probing": ProbingConfig(
+            states="B", every_n_increments=0, amplitude_min=1e-8, amplitude_max=1e-8
+        ),
+    }
+    return dataclasses.replace(base, extensions=MappingProxyType(extensions), source_text="")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    from dem_taichi.protocol import run_protocol
+
+    out = tmp_path_factory.mktemp("protocol_smoke")
+    return run_protocol(smoke_protocol_scene(), out)
+
+
+def test_transition_detector_finds_A(run):
+    details = run.transition_details
+    config = load_scene("smoke")
+    assert run.transition is not None and run.transition.found
+    assert details["detector_agrees"]
+    a = run.states["A"].measures
+    assert a["mean_stress"] > details["pressure_tolerance"]
+    assert a["mechanical_coordination_number"] >= details["coordination_min"]
+    # the relaxed states before A are not loaded solids (p below the tolerance or Z_m too low)
+    seq = [e for e in details["sequence"] if e["relaxed"] and not e.get("restored")]
+    idx = details["protocol_index"]
+    for e in seq[:idx]:
+        assert e["mean_stress"] <= details["pressure_tolerance"] or (
+            e["mechanical_coordination_number"] < details["coordination_min"]
+        )
+    # the recorded rule, re-applied to the relaxed sequence, gives the same state
+    t = detect_transition(
+        np.array([e["mean_stress"] for e in seq]),
+        np.array([e["mechanical_coordination_number"] for e in seq]),
+        details["pressure_tolerance"],
+        details["coordination_min"],
+    )
+    assert t.index == idx
+    assert config.scene.name == "smoke"
+
+
+def test_servo_targets_held_at_relaxed_states(run):
+    checked = 0
+    for state in run.path_states:
+        m = state.measures
+        for axis, target in zip(("stress_xx", "stress_yy"), state.targets, strict=True):
+            if math.isfinite(target):
+                assert abs(m[axis] - target) <= TOL * target, (state.stage, state.increment)
+                checked += 1
+        if state.stage != "isotropic_to_A":
+            assert state.relaxed
+            assert m["unbalanced_force_ratio"] < 1e-4
+    assert checked >= 8
+    target = 20.0
+    for label in ("B", "C", "B'", "R1_end"):
+        assert abs(run.states[label].measures["mean_stress"] - target) <= TOL * target, label
+    b = run.states["B"].measures
+    assert abs(b["stress_xx"] - b["stress_yy"]) <= 2 * TOL * target
+    r = run.states["R1_end"].measures
+    assert r["deviatoric_stress"] / r["mean_stress"] == pytest.approx(0.4, abs=3 * TOL)
+
+
+def test_k0_keeps_the_horizontal_strain_exactly(run):
+    history = open_history(run.files["history"])
+    k0 = history["stage"].values == stage_code("A_to_C")
+    assert k0.sum() > 5
+    a = run.states["A"].measures
+    # L_x is never changed along K0: bitwise the length of A
+    assert np.all(history["cell_length_x"].values[k0] == a["cell_length_x"])
+    assert np.all(history["strain_xx"].values[k0] == a["strain_xx"])
+    assert np.all(history["strain_yy"].values[k0] >= -1e-12)
+    c = run.states["C"].measures
+    assert c["deviatoric_stress"] > 0  # vertical loading with the lateral strain held
+
+
+def test_unloading_keeps_p_constant_and_ends_isotropic(run):
+    p_c = run.states["C"].measures["mean_stress"]
+    unloading = [s for s in run.path_states if s.stage == "C_to_B"]
+    assert len(unloading) == 2
+    for s in unloading:
+        assert abs(s.measures["mean_stress"] - p_c) <= TOL * p_c
+    q_b = run.states["B'"].measures["deviatoric_stress"]
+    assert abs(q_b) <= 2 * TOL * p_c
+
+
+def test_quasi_static_indicators_recorded(run):
+    history = open_history(run.files["history"])
+    limit = load_scene("smoke").control.inertial_number_max
+    stage = history["stage"].values
+    servo = np.isin(stage, [stage_code(s) for s in ("A_to_B", "A_to_C", "C_to_B", "radial")])
+    inertial = history["inertial_number"].values[servo]
+    inertial = inertial[np.isfinite(inertial)]
+    # the servo caps ε̇ at half the limit for the stress at the start of each update; only a
+    # sudden stress drop within an update can push I above the limit
+    assert np.mean(inertial <= limit) >= 0.95
+    assert np.all(np.isfinite(history["unbalanced_force_ratio"].values[servo]))
+    for name in ("A_to_B", "A_to_C", "C_to_B", "radial"):
+        record = run.stages[name]
+        assert record.seconds > 0 and record.steps > 0
+        assert record.max_unbalanced_force_relaxed < 1e-4
+
+
+def test_outputs_written_with_schema(run, tmp_path):
+    for key in ("history", "relaxed_states", "probes", "report", "summary", "figure_paths",
+                "figure_states", "configuration_A", "configuration_B", "configuration_C",
+                "configuration_B'", "state_A"):  # fmt: skip
+        assert key in run.files, key
+    relaxed = open_history(run.files["relaxed_states"])
+    assert relaxed.sizes["time"] == len(run.path_states)
+    conf = open_configuration(run.files["configuration_C"])
+    assert conf.sizes["rod"] == 40
+    assert conf.attrs["mean_stress"] == pytest.approx(run.states["C"].measures["mean_stress"])
+    probes = open_probes(run.files["probes"])
+    assert list(probes["state_label"].values) == ["B"]
+    for var in PROBE_VARIABLES:
+        assert var.name in probes.variables
+    assert probes.attrs["stress_scale_kpa"] == 1.0
+    report = open(run.files["report"]).read()
+    for words in ("## Stages", "## Fluid–solid transition", "| B' |", "## Findings"):
+        assert words in report
+    assert "error" not in " ".join(run.files)
+
+
+def test_restart_from_a_checkpointed_state(run):
+    from dem_taichi.engine import Simulation
+
+    sim = Simulation.from_checkpoint(run.files["state_C"])
+    m = sim.measure()
+    assert m["mean_stress"] == pytest.approx(run.states["C"].measures["mean_stress"], rel=1e-12)
+
+
+def test_cli_rejects_a_bad_pattern(capsys):
+    from dem_taichi.protocol import main
+
+    with pytest.raises(SystemExit):
+        main(["smoke", "--out", "x", "--pattern", "salty"])
+    assert "salty" in capsys.readouterr().err

@@ -1,0 +1,81 @@
+"""[protocol] and [probing] scene sections: defaults, validation messages, TOML round trip."""
+
+from __future__ import annotations
+
+import pytest
+
+from dem_taichi.config import SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.protocol_config import (
+    ProbingConfig,
+    ProtocolConfig,
+    parse_number_list,
+    probing_settings,
+    protocol_settings,
+)
+
+
+def test_sections_load_from_a_scene_and_round_trip():
+    scene = scene_from_toml(
+        '[protocol]\ntarget_mean_stress = 50.0\nradial_stress_ratios = "0.5, -0.25"\n'
+        '[probing]\nstates = "A, C"\namplitude_min = 1e-8\n'
+    )
+    protocol, probing = protocol_settings(scene), probing_settings(scene)
+    assert protocol.target_mean_stress == 50.0
+    assert protocol.radial_ratios == (0.5, -0.25)
+    assert probing.state_labels == ("A", "C")
+    again = scene_from_toml(scene_to_toml(scene))
+    assert again.extensions["protocol"] == protocol
+    assert again.extensions["probing"] == probing
+
+
+def test_defaults_when_the_scene_has_no_section():
+    scene = scene_from_toml("[scene]\nname = 'x'\n")
+    assert protocol_settings(scene) == ProtocolConfig()
+    assert probing_settings(scene) == ProbingConfig()
+    assert ProtocolConfig().stress_tolerance == 1e-3
+
+
+def test_builtin_scenes_with_sections_load():
+    for name in ("smoke", "default", "paper"):
+        scene = load_scene(name)
+        assert isinstance(protocol_settings(scene), ProtocolConfig)
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("[protocol]\nbogus = 1\n", ["[protocol]", "bogus", "allowed keys"]),
+        ("[protocol]\ntarget_mean_stress = -1.0\n", ["target_mean_stress", "out of range"]),
+        ("[protocol]\nstress_tolerance = 0.5\n", ["stress_tolerance", "allowed"]),
+        (
+            "[protocol]\ncompression_increment = 0.01\nmin_compression_increment = 0.02\n",
+            ["min_compression_increment", "allowed"],
+        ),
+        ('[protocol]\nradial_stress_ratios = "0.5, x"\n', ["radial_stress_ratios", "numbers"]),
+        ('[protocol]\nradial_stress_ratios = "2.5"\n', ["radial_stress_ratios", "(-2, 2)"]),
+        ("[protocol]\nrun_k0 = false\n", ["run_unloading", "run_k0"]),
+        ('[probing]\nsliding_contacts = "maybe"\n', ["sliding_contacts", "stuck | free"]),
+        ("[probing]\namplitude_min = 1e-2\namplitude_max = 1e-3\n", ["amplitude_min"]),
+        ("[probing]\nevery_n_increments = 1.5\n", ["every_n_increments", "integer"]),
+    ],
+)
+def test_invalid_values_fail_naming_the_key(text, words):
+    with pytest.raises(SceneError) as info:
+        scene_from_toml(text)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_amplitudes_are_log_spaced_and_inclusive():
+    amps = ProbingConfig(amplitude_min=1e-8, amplitude_max=1e-4, amplitudes_per_decade=2).amplitudes
+    assert len(amps) == 9
+    assert amps[0] == pytest.approx(1e-8) and amps[-1] == pytest.approx(1e-4)
+    assert all(b / a == pytest.approx(10**0.5) for a, b in zip(amps, amps[1:], strict=False))
+    assert ProbingConfig(amplitude_min=1e-5, amplitude_max=1e-5).amplitudes == (1e-5,)
+
+
+def test_parse_number_list():
+    assert parse_number_list("", "k") == ()
+    assert parse_number_list(" 1, 2.5 ,-3", "k") == (1.0, 2.5, -3.0)
+    with pytest.raises(SceneError, match="k = "):
+        parse_number_list("1, nan", "k")
