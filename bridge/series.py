@@ -269,9 +269,12 @@ def path_series(history: xr.Dataset, path: str, convention: Convention) -> xr.Da
         return np.asarray(history[name].isel({dim: idx}).values, dtype=float)
 
     values = _state_values(
-        take("stress_yy"), take("stress_xx"), take("specific_volume"), take("fabric_deviator"),
+        take("stress_yy"),
+        take("stress_xx"),
+        take("specific_volume"),
+        take("fabric_deviator"),
         convention,
-    )  # fmt: skip
+    )
     bad = ~np.isfinite(values["mean_stress"]) | ~(values["mean_stress"] > 0)
     if np.any(bad):
         raise SeriesError(
@@ -327,9 +330,12 @@ def probe_series(
         return np.asarray(probes[name].isel(probe=idx).values, dtype=float)
 
     values = _state_values(
-        take("stress_yy"), take("stress_xx"), take("specific_volume"), take("fabric_deviator"),
+        take("stress_yy"),
+        take("stress_xx"),
+        take("specific_volume"),
+        take("fabric_deviator"),
         convention,
-    )  # fmt: skip
+    )
     values["e_oed_v"] = convention.model_modulus(take(moduli[0]))
     values["e_oed_h"] = convention.model_modulus(take(moduli[1]))
     if method == "linear" and "stiffness_tensor_linear" in probes.variables:
@@ -413,9 +419,12 @@ def history_from_model(
     stages: list[np.ndarray] = []
     for ds, stage in parts:
         values = dem_state_values(
-            ds["axial_stress"].values, ds["radial_stress"].values,
-            ds["specific_volume"].values, ds["fabric"].values, convention,
-        )  # fmt: skip
+            ds["axial_stress"].values,
+            ds["radial_stress"].values,
+            ds["specific_volume"].values,
+            ds["fabric"].values,
+            convention,
+        )
         for key, val in values.items():
             columns.setdefault(key, []).append(np.atleast_1d(val))
         stages.append(np.full(ds.sizes["step"], stage_code(stage), dtype=np.int32))

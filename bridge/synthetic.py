@@ -47,8 +47,9 @@ def model_paths(
     to σ_v = ``sigma_v_max`` (default 1.3 p_max, i.e. p ≈ p_max at K0 ≈ 0.65), both with
     geometric stress increments, then constant-p unloading from the end of K0 to q = 0."""
     start = initial_state(p0, params, options)
-    iso = drivers.isotropic(p_max, state=start, increments=increments, params=params,
-                            options=options)  # fmt: skip
+    iso = drivers.isotropic(
+        p_max, state=start, increments=increments, params=params, options=options
+    )
     sigma_v = 1.3 * p_max if sigma_v_max is None else float(sigma_v_max)
     controls = [
         Control.triaxial(axial_stress=s, radial_strain_increment=0.0)

@@ -1,0 +1,295 @@
+"""DEM results → calibration → predictions → figures → report, in one call or one command.
+
+``calibrate_from_results(history_path, probes_path, out_dir, options)`` is what the demo runs;
+``python -m bridge.pipeline --history H.nc --probes P.nc --out DIR`` does the same from a shell
+(``--synthetic`` makes DEM-like results with the TIV model itself, Table 1 perturbed, and
+calibrates on them: a check that needs no DEM run).
+
+History file: the series need relaxed path states. The protocol writes them to
+``relaxed_states.nc`` beside ``history.nc`` (which also holds every loading record); when
+``history_path`` is a ``history.nc`` with a ``relaxed_states.nc`` beside it, the latter is used
+(``PipelineOptions.prefer_relaxed_states``, stated in the report).
+
+Stress scale: ``PipelineOptions.stress_scale_kpa``; when None it is read from the history's
+global attribute ``stress_scale_kpa`` (written by the DEM protocol), and the report says so; a
+file without it and no option fails.
+
+Outputs in ``out_dir``: ``calibration.json`` (parameters, standard errors, stages, fit quality,
+what was fitted), ``calibration.txt`` (text report), ``prediction_<path>.nc`` (model runs) and
+``prediction_probes_<path>.nc`` (elastic law at the measured probe states), the figures
+``bridge_*.png`` and ``report.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import xarray as xr
+
+from tiv_model.params import BOUND_LAWS, TABLE1, ModelOptions
+
+from .calibration import STAGES, CalibrationOptions, calibrate
+from .figures import write_figures
+from .predict import predict_paths, predict_probes, summary
+from .report import report_markdown, write_report
+from .series import PATHS, Convention, SeriesError, all_probe_series, history_series
+
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    """Everything the pipeline needs besides the files (see the module docstring).
+
+    stress_scale_kpa: kPa per DEM stress unit; None: the history's ``stress_scale_kpa``.
+    convention, fabric_scale: see :class:`bridge.series.Convention`.
+    probe_method: ``"linear"`` or ``"dynamic"`` probe moduli.
+    calibration: :class:`bridge.calibration.CalibrationOptions` (model options inside).
+    stages: calibration stages to run.
+    k0_mode: ``"element"`` (K0 driver) or ``"stress"`` (DEM stress history) for predictions.
+    max_increments: most model increments per predicted path.
+    figures: write the figures.
+    """
+
+    stress_scale_kpa: float | None = None
+    convention: str = "triaxial"
+    fabric_scale: float = 1.0
+    probe_method: str = "linear"
+    prefer_relaxed_states: bool = True
+    calibration: CalibrationOptions = field(default_factory=CalibrationOptions)
+    stages: tuple[str, ...] = STAGES
+    k0_mode: str = "element"
+    max_increments: int = 40
+    figures: bool = True
+
+
+def _open(path: Path, kind: str) -> xr.Dataset:
+    from dem_taichi.io import open_history, open_probes
+
+    return open_history(path) if kind == "history" else open_probes(path)
+
+
+def _stress_scale(options: PipelineOptions, history: xr.Dataset, path: Path) -> tuple[float, str]:
+    if options.stress_scale_kpa is not None:
+        return float(options.stress_scale_kpa), "given as an option"
+    value = history.attrs.get("stress_scale_kpa")
+    if value is None:
+        raise SeriesError(
+            f"no stress scale: {path} has no global attribute 'stress_scale_kpa'; give "
+            "PipelineOptions(stress_scale_kpa=...) (--stress-scale), kPa per DEM stress unit"
+        )
+    return float(value), f"from the attribute stress_scale_kpa of {path.name}"
+
+
+def calibrate_from_results(
+    history_path, probes_path, out_dir, options: PipelineOptions | None = None
+) -> dict:
+    """Calibrate on DEM results, predict, draw and report (see the module docstring).
+
+    ``probes_path`` may be None: then the elastic stage is skipped (k, g, n, r, ω stay at their
+    starting values, as the report says). Returns a JSON-able dict: ``parameters``,
+    ``standard_errors``, ``fitted``, ``out_of_sample``, ``predictions`` (rows of
+    :func:`bridge.predict.summary`), ``files`` and ``seconds``.
+    """
+    t0 = time.perf_counter()
+    options = options or PipelineOptions()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    history_file = Path(history_path)
+    used_history = history_file
+    sibling = history_file.with_name("relaxed_states.nc")
+    if options.prefer_relaxed_states and history_file.name == "history.nc" and sibling.exists():
+        used_history = sibling
+    history = _open(used_history, "history")
+    scale, scale_note = _stress_scale(options, history, used_history)
+    convention = Convention(scale, options.convention, options.fabric_scale)
+    available = []
+    for path in PATHS:
+        try:
+            history_series(history, convention, (path,))
+            available.append(path)
+        except SeriesError:
+            pass
+    series = history_series(history, convention, tuple(available))
+    stages = tuple(options.stages)
+    probes: dict[str, xr.Dataset] = {}
+    if probes_path is not None:
+        probes = all_probe_series(
+            _open(Path(probes_path), "probes"), convention, options.probe_method
+        )
+    elif "elastic" in stages:
+        stages = tuple(s for s in stages if s != "elastic")
+    result = calibrate(series, probes, options.calibration, stages)
+    model_options = options.calibration.model_options
+    runs = predict_paths(result, series, model_options, options.k0_mode, options.max_increments)
+    model_probes = predict_probes(result, probes, model_options) if probes else {}
+    files: dict[str, str] = {}
+    for path, ds in runs.items():
+        target = out / f"prediction_{path}.nc"
+        ds.to_netcdf(target)
+        files[f"prediction_{path}"] = str(target)
+    for path, ds in model_probes.items():
+        target = out / f"prediction_probes_{path}.nc"
+        ds.to_netcdf(target)
+        files[f"prediction_probes_{path}"] = str(target)
+    figures = {}
+    if options.figures:
+        figures = write_figures(series, probes, runs, model_probes, out)
+        files.update({f"figure_{k}": str(v) for k, v in figures.items()})
+    description = {
+        "history": f"{used_history}"
+        + (" (relaxed states beside the given history)" if used_history != history_file else ""),
+        "probes": f"{probes_path} ({options.probe_method} moduli)" if probes_path else "none",
+        "paths": ", ".join(f"{p} ({series[p].sizes['point']} points)" for p in series),
+        "probe paths": ", ".join(f"{p} ({ds.sizes['point']})" for p, ds in probes.items()) or "—",
+        "stress scale": f"{scale:g} kPa per DEM stress unit ({scale_note})",
+        "convention": convention.attrs()["convention_stress"] + f" [{convention.name}]",
+        "fabric": convention.attrs()["convention_fabric"] + f", F = {convention.fabric_scale:g}",
+        "moduli": convention.attrs()["convention_moduli"],
+        "stages": ", ".join(stages),
+    }
+    text = report_markdown(result, runs, model_probes, probes, description, figures, out)
+    files["report"] = str(write_report(out / "report.md", text))
+    (out / "calibration.txt").write_text(result.report() + "\n")
+    files["calibration_text"] = str(out / "calibration.txt")
+    rows = summary(runs) + summary({f"{p} (probes)": ds for p, ds in model_probes.items()})
+    outcome = {
+        "parameters": result.params_.as_symbols(),
+        "standard_errors": {
+            k: (v if math.isfinite(v) else None) for k, v in result.standard_errors_.items()
+        },
+        "fitted": [list(p) for p in result.fitted_],
+        "out_of_sample": sorted(
+            {f"{r['path']}:{r['variable']}" for r in rows if r["role"] == "out_of_sample"}
+        ),
+        "predictions": rows,
+        "data": {k: str(v) for k, v in description.items()},
+        "files": files,
+    }
+    outcome["seconds"] = time.perf_counter() - t0
+    calibration = result.to_dict() | {"data": outcome["data"], "predictions": rows}
+    (out / "calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
+    files["calibration"] = str(out / "calibration.json")
+    return outcome
+
+
+def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float = 0.0):
+    """Write synthetic DEM-like ``relaxed_states.nc`` and ``probes.nc`` (Table 1 perturbed:
+    g 40, k 70, n 0.2, r 0.5, N 1.35, λ* 0.22, M 1.0, c 1.5, s 10, z 6, ω 20) into
+    ``out_dir``; returns (history path, probes path, the true Parameters)."""
+    from .synthetic import synthetic_results
+
+    truth = TABLE1.replace(
+        g=40.0,
+        k=70.0,
+        n=0.2,
+        r=0.5,
+        N=1.35,
+        lambda_star=0.22,
+        M=1.0,
+        c=1.5,
+        s=10.0,
+        z=6.0,
+        omega=20.0,
+    )
+    noise_map = {"stress": noise, "specific_volume": noise, "fabric": noise, "moduli": noise}
+    syn = synthetic_results(
+        truth,
+        convention=Convention(1.0),
+        increments=increments,
+        noise=noise_map if noise > 0 else None,
+        seed=seed,
+    )
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    history = out / "synthetic_relaxed_states.nc"
+    probes = out / "synthetic_probes.nc"
+    syn.history.to_netcdf(history)
+    syn.probes.to_netcdf(probes)
+    return history, probes, truth
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line (``python -m bridge.pipeline -h``)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m bridge.pipeline",
+        description="Calibrate the TIV model on DEM results, predict, draw and report.",
+    )
+    parser.add_argument("--history", help="DEM history or relaxed_states.nc")
+    parser.add_argument("--probes", help="DEM probes.nc (optional: no elastic stage without it)")
+    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument(
+        "--synthetic",
+        action="store_true",
+        help="calibrate on synthetic DEM-like results made by the TIV model",
+    )
+    parser.add_argument("--noise", type=float, default=0.0, help="noise of --synthetic data")
+    parser.add_argument(
+        "--stress-scale",
+        type=float,
+        default=None,
+        help="kPa per DEM stress unit (default: the history's attribute)",
+    )
+    parser.add_argument("--convention", default="triaxial", choices=("triaxial", "plane"))
+    parser.add_argument("--fabric-scale", type=float, default=1.0)
+    parser.add_argument("--probe-method", default="linear", choices=("linear", "dynamic"))
+    parser.add_argument("--anisotropy", default="A", choices=("A", "B"))
+    parser.add_argument("--no-constraint-forces", action="store_true")
+    parser.add_argument("--bound-law", default="exponential", choices=tuple(BOUND_LAWS))
+    parser.add_argument("--reference-pressure", type=float, default=100.0, help="p_r (kPa)")
+    parser.add_argument("--fix", nargs="*", default=[], help="symbols held at Table 1 values")
+    parser.add_argument("--fix-M", action="store_true", help="do not fit M (Table 1 value)")
+    parser.add_argument("--omega-stage", default="elastic", choices=("elastic", "fabric"))
+    parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
+    parser.add_argument("--passes", type=int, default=3)
+    parser.add_argument("--max-k0-increments", type=int, default=12)
+    parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
+    parser.add_argument("--no-figures", action="store_true")
+    args = parser.parse_args(argv)
+    stress_scale = args.stress_scale
+    if args.synthetic:
+        history, probes, truth = synthetic_inputs(args.out, noise=args.noise)
+    else:
+        if not args.history:
+            parser.error("--history is required (or --synthetic)")
+        history, probes, truth = args.history, args.probes, None
+    model_options = ModelOptions(
+        anisotropy=args.anisotropy,
+        constraint_forces=not args.no_constraint_forces,
+        bound_law=BOUND_LAWS[args.bound_law],
+    )
+    calibration = CalibrationOptions(
+        reference_pressure=args.reference_pressure,
+        model_options=model_options,
+        fixed=tuple(args.fix),
+        fit_critical_stress_ratio=not args.fix_M,
+        omega_stage=args.omega_stage,
+        fabric_series=tuple(args.fabric_series),
+        passes=args.passes,
+        max_k0_increments=args.max_k0_increments,
+    )
+    options = PipelineOptions(
+        stress_scale_kpa=stress_scale,
+        convention=args.convention,
+        fabric_scale=args.fabric_scale,
+        probe_method=args.probe_method,
+        calibration=calibration,
+        k0_mode=args.k0_mode,
+        figures=not args.no_figures,
+    )
+    outcome = calibrate_from_results(history, probes, args.out, options)
+    print(Path(outcome["files"]["calibration_text"]).read_text())
+    if truth is not None:
+        print("synthetic truth vs calibrated:")
+        for sym, value in truth.as_symbols().items():
+            print(f"    {sym:<12} {value:<10.5g} {outcome['parameters'][sym]:.6g}")
+    print(f"report: {outcome['files']['report']} ({outcome['seconds']:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,158 @@
+"""TIV model runs along the DEM's paths, sampled at the DEM's points.
+
+Every run starts, like the DEM, at state A: the model's normally consolidated isotropic state at
+the DEM's p_A (isotropic fabric, :func:`tiv_model.integrate.initial_state`). The paths are
+driven with the model's own controls (:class:`tiv_model.integrate.Control`):
+
+* :func:`isotropic_run`: σ_a = σ_r = p_k at the DEM's isotropic-path p_k (stress control);
+* :func:`k0_run`: ε_r = 0 with σ_a = the DEM's σ_a,k (axial stress control): the K0 ratio,
+  v and β are the model's answers at the DEM's vertical stresses;
+* :func:`stress_path_run`: both σ_a and σ_r follow the DEM's stress history (stress control);
+* :func:`unloading_run`: from the model's own state C (end of its K0 run) along the DEM's
+  unloading path scaled onto it: p_k = p_C^model p_k^DEM/p_C^DEM and
+  q_k = q_C^model q_k^DEM/q_C^DEM (so C ↦ C and the end q = 0 ↦ q = 0).
+
+When a path has more points than ``max_increments``, the model takes ``max_increments`` of them
+(evenly spread, always the last) as targets and its results are interpolated linearly in
+ln σ_a (K0) or along the increment index to the others. Results are dictionaries of arrays at
+the DEM points (first point = the start state).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tiv_model.drivers import record, run_path
+from tiv_model.integrate import Control, initial_state
+from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
+from tiv_model.state import State
+
+#: Names of the per-point results (tiv_model.drivers.VARIABLES subset).
+RUN_VARIABLES = (
+    "axial_stress",
+    "radial_stress",
+    "mean_stress",
+    "deviatoric_stress",
+    "stress_ratio",
+    "specific_volume",
+    "fabric",
+    "e_oed_v",
+    "e_oed_h",
+    "stiffness_ratio",
+    "preconsolidation_pressure",
+    "plastic",
+)
+
+
+def _subsample(n_points: int, max_increments: int) -> np.ndarray:
+    """Indices 1..n−1 of the points used as targets (all when few enough)."""
+    if n_points - 1 <= max_increments:
+        return np.arange(1, n_points)
+    idx = np.unique(np.round(np.linspace(1, n_points - 1, max_increments)).astype(int))
+    return idx
+
+
+def _collect(states: list[State], params, options) -> dict[str, np.ndarray]:
+    rows = [record(s, params, options) for s in states]
+    return {name: np.array([r[name] for r in rows]) for name in RUN_VARIABLES}
+
+
+def _interpolate(results, used: np.ndarray, n_points: int, coordinate: np.ndarray):
+    if used.size == n_points - 1:
+        return results
+    x_known = coordinate[np.concatenate([[0], used])]
+    out = {}
+    for name, values in results.items():
+        out[name] = np.interp(coordinate, x_known, values)
+    return out
+
+
+def _run(start: State, controls, params, options, settings=None) -> tuple[list[State], str | None]:
+    kwargs = {} if settings is None else {"settings": settings}
+    return run_path(start, controls, params, options, on_error="raise", **kwargs)
+
+
+def start_state(mean_stress: float, params: Parameters, options: ModelOptions) -> State:
+    """State A of the model: normally consolidated, isotropic, at p_A (kPa)."""
+    return initial_state(float(mean_stress), params, options)
+
+
+def isotropic_run(
+    mean_stress, params: Parameters, options: ModelOptions = DEFAULT_OPTIONS, max_increments=40
+) -> dict[str, np.ndarray]:
+    """Model isotropic compression through the DEM's p_k (kPa; the first is p_A)."""
+    p = np.asarray(mean_stress, dtype=float)
+    start = start_state(p[0], params, options)
+    used = _subsample(p.size, max_increments)
+    controls = [Control.triaxial(axial_stress=x, radial_stress=x) for x in p[used]]
+    states, _ = _run(start, controls, params, options)
+    return _interpolate(_collect(states, params, options), used, p.size, np.log(p))
+
+
+def k0_run(
+    axial_stress,
+    start_mean_stress: float,
+    params: Parameters,
+    options: ModelOptions = DEFAULT_OPTIONS,
+    max_increments: int = 40,
+    return_state: bool = False,
+):
+    """Model K0 loading (ε_r = 0) through the DEM's σ_a,k (kPa) from state A at p_A.
+
+    The first entry of ``axial_stress`` is the start point (its value is replaced by p_A).
+    With ``return_state`` also returns the model's last State (C).
+    """
+    sa = np.asarray(axial_stress, dtype=float).copy()
+    sa[0] = float(start_mean_stress)
+    start = start_state(start_mean_stress, params, options)
+    used = _subsample(sa.size, max_increments)
+    controls = [Control.triaxial(axial_stress=x, radial_strain_increment=0.0) for x in sa[used]]
+    states, _ = _run(start, controls, params, options)
+    coordinate = np.log(np.maximum.accumulate(sa))
+    out = _interpolate(_collect(states, params, options), used, sa.size, coordinate)
+    return (out, states[-1]) if return_state else out
+
+
+def stress_path_run(
+    axial_stress,
+    radial_stress,
+    params: Parameters,
+    options: ModelOptions = DEFAULT_OPTIONS,
+    start: State | None = None,
+    max_increments: int = 40,
+) -> dict[str, np.ndarray]:
+    """Model run following the DEM's (σ_a, σ_r) history (kPa), from ``start`` or from state A
+    (normally consolidated at the first point's p)."""
+    sa = np.asarray(axial_stress, dtype=float)
+    sr = np.asarray(radial_stress, dtype=float)
+    if start is None:
+        start = start_state((sa[0] + 2.0 * sr[0]) / 3.0, params, options)
+    used = _subsample(sa.size, max_increments)
+    controls = [
+        Control.triaxial(axial_stress=a, radial_stress=r)
+        for a, r in zip(sa[used], sr[used], strict=True)
+    ]
+    states, _ = _run(start, controls, params, options)
+    return _interpolate(
+        _collect(states, params, options), used, sa.size, np.arange(sa.size, dtype=float)
+    )
+
+
+def unloading_run(
+    mean_stress,
+    deviatoric_stress,
+    state_c: State,
+    params: Parameters,
+    options: ModelOptions = DEFAULT_OPTIONS,
+    max_increments: int = 40,
+) -> dict[str, np.ndarray]:
+    """Model unloading from its own state C along the DEM's (p, q) path scaled onto it."""
+    p = np.asarray(mean_stress, dtype=float)
+    q = np.asarray(deviatoric_stress, dtype=float)
+    p_c = state_c.mean_stress
+    q_c = float(state_c.stress[0] - state_c.stress[1])
+    p_m = p_c * p / p[0]
+    q_m = q_c * q / q[0] if q[0] != 0 else np.zeros_like(q)
+    return stress_path_run(
+        p_m + 2.0 * q_m / 3.0, p_m - q_m / 3.0, params, options, state_c, max_increments
+    )
