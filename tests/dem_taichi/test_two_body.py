@@ -262,3 +262,15 @@ inertial_number_max = 0.01
     np.testing.assert_allclose(state["force"], force, atol=1e-9 * scale)
     np.testing.assert_allclose(state["torque"], torque, atol=1e-9 * scale)
     np.testing.assert_allclose(sim.stress(), forcelaw.stress_from_forces(snap), atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("face", ["edge", "inner"])
+def test_long_range_force_across_the_periodic_boundary(face):
+    """The same pair placed straddling the cell boundary gives the same force."""
+    forces = []
+    for x0 in (3.0, L_CELL - 1.6, L_CELL - 2.7):
+        gas, _ = facing_rods(0.08, face, x0=x0)
+        forces.append(Simulation(rods_scene("acidic"), initial=gas).get_state()["force"][0])
+    np.testing.assert_allclose(forces[1], forces[0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(forces[2], forces[0], rtol=1e-9, atol=1e-12)
+    assert abs(forces[0][0]) > 1.0
