@@ -117,7 +117,9 @@ class CalibrationOptions:
     elastic_paths: probe paths of the elastic stage.
     compressibility_min_pressure: isotropic points with p below it (kPa) are not fitted.
     max_k0_increments: most increments of a model K0 run (more DEM points are interpolated).
-    passes: repetitions of the three stages (stops early when parameters change < 1e-7).
+    passes: most repetitions of the coupled stages (stops when parameters change < 1e-10):
+        compressibility and elastic (cheap) are cycled to a fixed point, then fabric runs once;
+        with ``omega_stage="fabric"`` all three are cycled.
     scales: residual scales, keys of ``DEFAULT_SCALES``.
     bounds: per-symbol (low, high) overriding ``DEFAULT_BOUNDS``.
     penalty: residual value given to each point when a model run fails.
@@ -134,7 +136,7 @@ class CalibrationOptions:
     elastic_paths: tuple[str, ...] = ("isotropic", "unloading")
     compressibility_min_pressure: float = 0.0
     max_k0_increments: int = 12
-    passes: int = 3
+    passes: int = 30
     scales: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_SCALES))
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     penalty: float = 1e3
@@ -631,16 +633,26 @@ def calibrate(
     initial = params
     history = [params.as_symbols()]
     fits: dict[str, StageFit] = {}
+    # The fabric stage (model runs, costly) changes nothing the other stages use unless ω is
+    # fitted there: then the cheap stages are iterated to a fixed point first and the fabric
+    # stage runs once; otherwise all stages are cycled ``passes`` times.
+    cheap = tuple(s for s in stages if s != "fabric")
+    coupled = options.omega_stage == "fabric" and "fabric" in stages
+    groups = [stages] if coupled else [cheap, tuple(s for s in stages if s == "fabric")]
     passes = 0
-    for _ in range(options.passes):
-        passes += 1
-        before = np.array(list(params.as_symbols().values()))
-        for stage in stages:
-            params, fits[stage] = _fit_stage(built[stage], params, options.free(stage), options)
-        history.append(params.as_symbols())
-        after = np.array(list(params.as_symbols().values()))
-        if np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-12)) < 1e-7:
-            break
+    for group in groups:
+        if not group:
+            continue
+        rounds = options.passes if (coupled or group == cheap) else 1
+        for _ in range(rounds):
+            passes += 1
+            before = np.array(list(params.as_symbols().values()))
+            for stage in group:
+                params, fits[stage] = _fit_stage(built[stage], params, options.free(stage), options)
+            history.append(params.as_symbols())
+            after = np.array(list(params.as_symbols().values()))
+            if np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-12)) < 1e-10:
+                break
     return CalibrationResult(params, initial, [fits[s] for s in stages], options, passes, history)
 
 

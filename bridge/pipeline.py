@@ -245,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fix-M", action="store_true", help="do not fit M (Table 1 value)")
     parser.add_argument("--omega-stage", default="elastic", choices=("elastic", "fabric"))
     parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
-    parser.add_argument("--passes", type=int, default=3)
+    parser.add_argument("--passes", type=int, default=30, help="most cycles of coupled stages")
     parser.add_argument("--max-k0-increments", type=int, default=12)
     parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
     parser.add_argument("--no-figures", action="store_true")

@@ -1,0 +1,148 @@
+"""Staged calibration: exact recovery on synthetic results of known parameters, uncertainty,
+clear failures."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bridge.calibration import CalibrationError, CalibrationOptions, calibrate
+from bridge.series import all_probe_series, history_series, probe_series
+from bridge.synthetic import add_noise
+from tiv_model.params import TABLE1
+
+from .conftest import CONVENTION, TRUTH
+
+ELASTIC_AND_VOLUME = ("k", "g", "n", "r", "omega", "N", "lambda_star")
+
+
+@pytest.fixture(scope="module")
+def data(synthetic):
+    return history_series(synthetic.history, CONVENTION), all_probe_series(
+        synthetic.probes, CONVENTION
+    )
+
+
+def test_compressibility_and_elastic_stages_recover_the_parameters(data):
+    series, probes = data
+    result = calibrate(series, probes, CalibrationOptions(), ("compressibility", "elastic"))
+    got, want = result.params_.as_symbols(), TRUTH.as_symbols()
+    for sym in ELASTIC_AND_VOLUME:
+        assert got[sym] == pytest.approx(want[sym], rel=1e-8), sym
+        assert TABLE1.as_symbols()[sym] != pytest.approx(want[sym], rel=1e-3)  # it did move
+    for sym in ("M", "c", "s", "z"):  # not fitted: kept at the starting values
+        assert got[sym] == TABLE1.as_symbols()[sym]
+    assert result.residual_rms_["isotropic:ln_specific_volume"] < 1e-10
+    assert result.role("unloading", "e_oed_h") == "fitted"
+    assert result.role("k0", "e_oed_h") == "out_of_sample"
+
+
+def test_fabric_stage_recovers_c_and_m_from_model_runs_along_k0(data):
+    series, probes = data
+    start = TRUTH.replace(c=1.2, M=1.15)
+    options = CalibrationOptions(initial=start, fixed=("s", "z"), max_k0_increments=6)
+    result = calibrate(series, probes, options, ("fabric",))
+    assert result.params_.c == pytest.approx(TRUTH.c, rel=1e-6)
+    assert result.params_.M == pytest.approx(TRUTH.M, rel=1e-6)
+    assert result.fitted_ == (("k0", "fabric"), ("k0", "stress_ratio"))
+    assert result.residual_rms_["k0:fabric"] < 1e-8
+
+
+def test_noise_on_moduli_estimates_within_the_standard_errors(synthetic):
+    """Elastic parameters from moduli with 2 % noise: every error within 4 standard errors,
+    and the errors not absurdly smaller than the standard errors (they are not zero)."""
+    history, probes = add_noise(synthetic.history, synthetic.probes, {"moduli": 0.02}, seed=3)
+    series = history_series(history, CONVENTION)
+    result = calibrate(
+        series,
+        all_probe_series(probes, CONVENTION),
+        CalibrationOptions(),
+        ("compressibility", "elastic"),
+    )
+    z = []
+    for sym in ("k", "g", "n", "r", "omega"):
+        err = result.standard_errors_[sym]
+        assert math.isfinite(err) and err > 0
+        z.append((result.params_.as_symbols()[sym] - TRUTH.as_symbols()[sym]) / err)
+    assert np.max(np.abs(z)) < 4.0, z
+    assert result.residual_rms_["isotropic:ln_e_oed_v"] == pytest.approx(0.02, rel=0.6)
+
+
+def test_noise_on_specific_volume_compressibility_within_standard_errors(synthetic):
+    history, probes = add_noise(
+        synthetic.history, synthetic.probes, {"specific_volume": 0.003}, seed=5
+    )
+    series = history_series(history, CONVENTION)
+    result = calibrate(series, {}, CalibrationOptions(), ("compressibility",))
+    for sym in ("N", "lambda_star"):
+        z = (result.params_.as_symbols()[sym] - TRUTH.as_symbols()[sym]) / result.standard_errors_[
+            sym
+        ]
+        assert abs(z) < 4.0, (sym, z)
+
+
+def test_k_and_g_need_the_cross_term(synthetic, data):
+    series, _ = data
+    dynamic = {
+        p: probe_series(synthetic.probes, p, CONVENTION, "dynamic")
+        for p in ("isotropic", "unloading")
+    }
+    with pytest.raises(CalibrationError, match="cannot separate k and g"):
+        calibrate(series, dynamic, CalibrationOptions(), ("elastic",))
+    result = calibrate(
+        series,
+        dynamic,
+        CalibrationOptions(initial=TRUTH.replace(k=60.0), fixed=("g",)),
+        ("elastic",),
+    )
+    assert result.params_.k == pytest.approx(TRUTH.k, rel=1e-7)
+
+
+def test_r_needs_the_unloading_probes(data):
+    series, probes = data
+    with pytest.raises(CalibrationError, match="unloading"):
+        calibrate(series, {"isotropic": probes["isotropic"]}, CalibrationOptions(), ("elastic",))
+
+
+def test_missing_series_and_bad_options_fail_clearly(data):
+    series, probes = data
+    with pytest.raises(CalibrationError, match="needs the 'k0' path"):
+        calibrate({"isotropic": series["isotropic"]}, probes, CalibrationOptions(), ("fabric",))
+    with pytest.raises(CalibrationError, match="unknown stage"):
+        calibrate(series, probes, CalibrationOptions(), ("plasticity",))
+    with pytest.raises(CalibrationError, match="fixed"):
+        CalibrationOptions(fixed=("kappa",))
+    with pytest.raises(CalibrationError, match="fabric_series"):
+        CalibrationOptions(fabric_series=("void_ratio",))
+    with pytest.raises(CalibrationError, match="omega_stage"):
+        CalibrationOptions(omega_stage="plastic")
+    with pytest.raises(CalibrationError, match="compressibility needs"):
+        calibrate(
+            series,
+            probes,
+            CalibrationOptions(compressibility_min_pressure=1e6),
+            ("compressibility",),
+        )
+
+
+def test_report_and_dict(data):
+    series, probes = data
+    result = calibrate(series, probes, CalibrationOptions(), ("compressibility", "elastic"))
+    text = result.report()
+    assert "lambda_star" in text and "+/-" in text and "fitted: isotropic:specific_volume" in text
+    summary = result.to_dict()
+    assert summary["parameters"]["k"] == pytest.approx(70.0)
+    assert ["unloading", "e_cross"] in summary["fitted"]
+    table = {row["symbol"]: row for row in result.parameter_table()}
+    assert table["k"]["stage"] == "elastic" and table["c"]["stage"] == "fixed"
+
+
+@pytest.mark.slow
+def test_all_stages_recover_table1_perturbed_from_table1(data):
+    """The whole staged calibration, starting from Table 1 (≈ 1–3 min)."""
+    series, probes = data
+    result = calibrate(series, probes, CalibrationOptions(max_k0_increments=6))
+    got, want = result.params_.as_symbols(), TRUTH.as_symbols()
+    for sym, value in want.items():
+        assert got[sym] == pytest.approx(value, rel=1e-4), sym
+    assert not result.warnings()
