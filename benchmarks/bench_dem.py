@@ -93,10 +93,10 @@ def profile_serial(sim, repeats=200):
 
     state = sim.get_state()
     args = sim._args()
-    prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+    prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
     t0 = time.perf_counter()
     for _ in range(repeats):
-        prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+        prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
     sim.a["flags"].to_numpy()
     force = (time.perf_counter() - t0) / repeats
     flags = sim.a["flags"]
@@ -105,7 +105,7 @@ def profile_serial(sim, repeats=200):
         f = flags.to_numpy()
         f[layout.F_FORCE_REBUILD] = 1
         flags.from_numpy(f)
-        prime_forces(sim.geometry.n_spheres, sim.physics, *args)
+        prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
     sim.a["flags"].to_numpy()
     rebuild_and_force = (time.perf_counter() - t0) / (repeats // 4)
     sim.set_state(state)
@@ -178,11 +178,13 @@ def main():
             )
             executions = [("serial", False)]
             if n_rods == 1520 and pressure == args.pressure:
-                executions += [("parallel", False), ("serial", True)]
+                executions += [("parallel", False), ("serial", True), ("gather", True)]
             for execution, deterministic in executions:
                 if args.arch == "gpu" and execution == "serial" and not deterministic:
                     execution = "parallel"
                 n_steps = args.steps if execution == "serial" else max(args.steps // 4, 500)
+                if args.arch == "gpu":
+                    n_steps = args.steps
                 r = time_case(scene, args.arch, execution, deterministic, state, n_steps)
                 row = {
                     "arch": args.arch,

@@ -199,7 +199,9 @@ class Integration(SceneSection):
     local_damping: float = field(default=0.2, metadata=_range(0.0, 1.0, hi_open=True))
     steps_per_call: int = field(default=100, metadata=_range(1, 1_000_000))
     skin: float = field(default=0.3, metadata=_range(0.0, None, lo_open=True))
-    execution: str = field(default="auto", metadata=_choices("auto", "serial", "parallel"))
+    execution: str = field(
+        default="auto", metadata=_choices("auto", "serial", "parallel", "gather")
+    )
     max_overlap: float = field(
         default=0.2, metadata=_range(0.0, 1.0, lo_open=True, doc="blow-up bound on δ/d")
     )

@@ -28,8 +28,10 @@ Execution
 (launch overhead paid once per call: the fastest at the study's size on a CPU, measured in
 benchmarks/bench_dem.py); it is bitwise deterministic. ``"parallel"`` launches three kernels per
 step, parallel over rods and discs with atomic force scatter (for GPUs / very large N; not
-bitwise reproducible). ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` forces
-the serial path.
+bitwise reproducible). ``"gather"``: the same three kernels with a full neighbour list and a
+per-rod gather of the pair forces (each pair evaluated twice, no atomics): deterministic in
+parallel, for GPUs. ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` picks the
+serial path on CPU and the gather path on GPU.
 
 Cell control
 ------------
@@ -202,13 +204,16 @@ class Simulation:
         self.runtime = ensure_runtime(arch, precision)
         self.arch, self.precision, self.deterministic = arch, precision, deterministic
         execution = execution or scene.integration.execution
-        if execution not in ("auto", "serial", "parallel"):
-            raise ValueError(f"execution = {execution!r}: allowed values are auto|serial|parallel")
-        if deterministic:
-            execution = "serial"
+        if execution not in ("auto", "serial", "parallel", "gather"):
+            raise ValueError(
+                f"execution = {execution!r}: allowed values are auto|serial|parallel|gather"
+            )
+        if deterministic and execution not in ("serial", "gather"):
+            execution = "serial" if arch == "cpu" else "gather"
         elif execution == "auto":
             execution = "serial" if arch == "cpu" else "parallel"
         self.execution = execution
+        self.full_list = execution == "gather"
         self.geometry = rod_geometry(scene)
         charge, _, _ = species_parameters(scene)
         self.charge = charge
@@ -251,7 +256,7 @@ class Simulation:
     def _initial_capacity(self) -> int:
         # half list: about half the discs within r_list of a disc at the densest packing
         r = self.list_radius / self.geometry.diameter
-        return int(2.2 * r * r) + 6
+        return (2 if self.full_list else 1) * (int(2.2 * r * r) + 6)
 
     def _allocate(self, capacity: int, cell_lengths: np.ndarray) -> None:
         import taichi as ti
@@ -365,7 +370,7 @@ class Simulation:
         from dem_taichi.kernels.step import prime_forces
 
         for _ in range(8):
-            prime_forces(self.geometry.n_spheres, self.physics, *self._args())
+            prime_forces(self.geometry.n_spheres, self.full_list, self.physics, *self._args())
             if not self._handle_flags(0):
                 return
         raise CapacityError("could not build the neighbour list")  # pragma: no cover
@@ -407,7 +412,8 @@ class Simulation:
         ):
             old = self.a[name].to_numpy()
             new = np.zeros((m, capacity), dtype=old.dtype)
-            new[:, : old.shape[1]] = old
+            keep = min(capacity, old.shape[1])
+            new[:, :keep] = old[:, :keep]
             self.a[name] = ti.ndarray(dtype, (m, capacity))
             self.a[name].from_numpy(new)
         self.a["pair_out"] = ti.ndarray(real, (m, capacity, 4))
@@ -533,10 +539,14 @@ class Simulation:
                         "flags",
                     )
                 ]
+                ns = self.geometry.n_spheres
                 for _ in range(todo):
-                    K.rebuild_if_needed(self.geometry.n_spheres, *rebuild_args)
-                    K.kick_drift_parallel(self.geometry.n_spheres, *kick_args)
-                    K.forces_parallel(self.geometry.n_spheres, self.physics, *force_args, 1)
+                    K.rebuild_if_needed(ns, self.full_list, *rebuild_args)
+                    K.kick_drift_parallel(ns, *kick_args)
+                    if self.full_list:
+                        K.forces_gather(ns, self.physics, *force_args)
+                    else:
+                        K.forces_parallel(ns, self.physics, *force_args, 1)
             steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
             self.timings["kernel"] += _time.perf_counter() - t0
             grown = self._handle_flags(done)
@@ -685,6 +695,7 @@ class Simulation:
         a = self.a
         measure_sums(
             self.geometry.n_spheres,
+            self.full_list,
             self.physics,
             a["vel"],
             a["omega"],
@@ -902,6 +913,7 @@ class Simulation:
             "params": params,
             "reference_lengths": self.reference_lengths.copy(),
             "step": np.array(self.step, dtype=np.int64),
+            "full_list": np.array(self.full_list),
         }
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
@@ -916,6 +928,7 @@ class Simulation:
                 f"state precision {state['angle'].dtype} differs from the simulation's "
                 f"{np.dtype(self._real)}"
             )
+        state = self._convert_list(state)
         capacity = state["neighbours"].shape[1]
         if capacity != self.capacity:
             self._grow(capacity)
@@ -954,6 +967,44 @@ class Simulation:
             a["disc_off"],
             a["cell"],
         )
+
+    def _convert_list(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Convert the neighbour list of a state between the half (i < j) and full forms.
+
+        The scalar tangential spring ξ is the same seen from both discs (t and the relative
+        velocity both change sign), so a pair's entry is mirrored with its ξ unchanged and the
+        image code negated.
+        """
+        full = bool(state.get("full_list", np.array(False)))
+        if full == self.full_list:
+            return state
+        counts = state["neighbour_count"]
+        entries = state["neighbours"]
+        springs = state["tangential_spring"]
+        rows: list[list[tuple[int, float]]] = [[] for _ in range(len(counts))]
+        for i, count in enumerate(counts):
+            for k in range(int(count)):
+                entry, xi = int(entries[i, k]), springs[i, k]
+                j, code = divmod(entry, L.IMAGE_CODES)
+                if full:
+                    if j > i:
+                        rows[i].append((entry, xi))
+                else:
+                    rows[i].append((entry, xi))
+                    mirrored = (4 - code // 5) * 5 + (4 - code % 5)
+                    rows[j].append((i * L.IMAGE_CODES + mirrored, xi))
+        capacity = max(max((len(r) for r in rows), default=1), self.capacity)
+        new_entries = np.zeros((len(counts), capacity), dtype=entries.dtype)
+        new_springs = np.zeros((len(counts), capacity), dtype=springs.dtype)
+        for i, row in enumerate(rows):
+            for k, (entry, xi) in enumerate(row):
+                new_entries[i, k], new_springs[i, k] = entry, xi
+        converted = dict(state)
+        converted["neighbours"] = new_entries
+        converted["tangential_spring"] = new_springs
+        converted["neighbour_count"] = np.array([len(r) for r in rows], dtype=counts.dtype)
+        converted["full_list"] = np.array(self.full_list)
+        return converted
 
     def set_parameters(self, **values: float) -> None:
         """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""

@@ -21,7 +21,11 @@ flags              (12,) int32     kernel flags (see kernels/layout.py)
 params             (20,) real      runtime parameters incl. the current strain rates
 reference_lengths  (2,) float64    L0 of the logarithmic strain
 step               () int64        steps done since the start of the run
+full_list          () bool         neighbour list holds both directions (``gather`` execution)
 =================  ==============  ===========================================================
+
+A state saved by one execution mode can be restored into another: the neighbour list (and its
+springs) is converted between the half and the full form.
 
 The state restores a run exactly: resuming from it gives the same trajectory bit for bit (serial
 execution) as not stopping.
@@ -48,6 +52,7 @@ STATE_KEYS = (
     "params",
     "reference_lengths",
     "step",
+    "full_list",
 )
 
 

@@ -130,6 +130,7 @@ def place_rod_discs_cs(ns: T, r, pos: T, c, s, offsets: T, disc_x: T, disc_off: 
 @ti.func
 def rebuild_lists(
     ns: T,
+    full: T,
     pos: T,
     angle: T,
     ref_pos: T,
@@ -220,7 +221,10 @@ def rebuild_lists(
                 start = cell_start[ccx, ccy]
                 for t in range(cell_count[ccx, ccy]):
                     j = cell_items[start + t]
-                    if j > i and j // ns != rod_i:
+                    accept = j > i
+                    if ti.static(full):
+                        accept = j != i
+                    if accept and j // ns != rod_i:
                         dx = xi_x - disc_x[j, 0]
                         dy = xi_y - disc_x[j, 1]
                         mx = ti.floor(dx / lx + 0.5)
@@ -407,6 +411,7 @@ def disc_forces(
     phys: ti.template(),
     atomic: ti.template(),
     update: ti.template(),
+    gather: ti.template(),
     i,
     vel: T,
     omega: T,
@@ -427,7 +432,8 @@ def disc_forces(
     """Add the forces of all list pairs of disc i to both rods.
 
     ``atomic``: scatter with atomic adds (parallel loops); otherwise plain read-modify-write,
-    valid only inside a serial loop (several times cheaper for float64).
+    valid only inside a serial loop (several times cheaper for float64). ``gather``: full list,
+    only rod i is written (each rod sums its own entries: deterministic in parallel).
     """
     rod_i = i // ns
     max_overlap = params[P_MAX_OVERLAP]
@@ -458,7 +464,9 @@ def disc_forces(
             sum_fx += fx
             sum_fy += fy
             sum_tau += tau_i
-            if ti.static(atomic):
+            if ti.static(gather):
+                pass  # full list: rod j gathers this pair from its own entry
+            elif ti.static(atomic):
                 ti.atomic_sub(force[rod_j, 0], fx)
                 ti.atomic_sub(force[rod_j, 1], fy)
                 ti.atomic_add(torque[rod_j], tau_j)
@@ -594,6 +602,7 @@ def run_steps_serial(
                 flags[F_FORCE_REBUILD] = 0
                 rebuild_lists(
                     ns,
+                    False,
                     pos,
                     angle,
                     ref_pos,
@@ -648,6 +657,7 @@ def run_steps_serial(
                         phys,
                         False,
                         True,
+                        False,
                         i,
                         vel,
                         omega,
@@ -672,6 +682,7 @@ def run_steps_serial(
 @ti.kernel
 def rebuild_if_needed(
     ns: ti.template(),
+    full: ti.template(),
     pos: nd,
     angle: nd,
     ref_pos: nd,
@@ -701,6 +712,7 @@ def rebuild_if_needed(
                 flags[F_FORCE_REBUILD] = 0
                 rebuild_lists(
                     ns,
+                    full,
                     pos,
                     angle,
                     ref_pos,
@@ -800,6 +812,7 @@ def forces_parallel(
                 phys,
                 True,
                 True,
+                False,
                 i,
                 vel,
                 omega,
@@ -825,6 +838,7 @@ def forces_parallel(
 @ti.kernel
 def prime_forces(
     ns: ti.template(),
+    full: ti.template(),
     phys: ti.template(),
     pos: nd,
     angle: nd,
@@ -864,6 +878,7 @@ def prime_forces(
             flags[F_FORCE_REBUILD] = 0
             rebuild_lists(
                 ns,
+                full,
                 pos,
                 angle,
                 ref_pos,
@@ -896,6 +911,7 @@ def prime_forces(
                     phys,
                     False,
                     False,
+                    full,
                     i,
                     vel,
                     omega,
@@ -918,6 +934,7 @@ def prime_forces(
 @ti.kernel
 def measure_sums(
     ns: ti.template(),
+    full: ti.template(),
     phys: ti.template(),
     vel: nd,
     omega: nd,
@@ -965,6 +982,10 @@ def measure_sums(
         for i in range(n_discs):
             rod_i = i // ns
             for k in range(nbr_count[i]):
+                if ti.static(full):
+                    if nbr[i, k] // IMAGE_CODES < i:
+                        pair_flags[i, k] = 0
+                        continue
                 fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
                     pair_interaction(
                         ns,
@@ -1029,3 +1050,62 @@ def place_all_discs(
     """Recompute the (derived) disc positions from the centroids, e.g. after a state restore."""
     for r in range(pos.shape[0]):
         place_rod_discs(ns, r, pos, angle, offsets, disc_x, disc_off, cell[C_LX], cell[C_LY])
+
+
+@ti.kernel
+def forces_gather(
+    ns: ti.template(),
+    phys: ti.template(),
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    disc_x: nd,
+    disc_off: nd,
+    offsets: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    flags: nd,
+):
+    """Deterministic parallel forces (full list): each rod gathers the pairs of its own discs.
+
+    Every pair is evaluated twice (once from each side; the two tangential springs evolve as
+    exact mirror images), no atomics: bitwise reproducible whatever the thread schedule.
+    """
+    for r in range(force.shape[0]):
+        if flags[F_STOP] == 0:
+            force[r, 0] = 0.0
+            force[r, 1] = 0.0
+            torque[r] = 0.0
+            for s in range(ns):
+                disc_forces(
+                    ns,
+                    phys,
+                    False,
+                    True,
+                    True,
+                    r * ns + s,
+                    vel,
+                    omega,
+                    force,
+                    torque,
+                    disc_x,
+                    disc_off,
+                    offsets,
+                    nbr,
+                    nbr_xi,
+                    nbr_count,
+                    charge,
+                    pair_table,
+                    cell,
+                    params,
+                    flags,
+                )
+    if flags[F_STOP] == 0:
+        cell[C_TIME] += params[P_DT]
+        flags[F_STEPS] += 1
