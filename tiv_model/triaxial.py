@@ -153,6 +153,33 @@ def model_for(params: Parameters, options: ModelOptions) -> TriaxialModel:
     return TriaxialModel(params, options)
 
 
+def _solve(matrix: list[list[float]], rhs: list[float]) -> list[float] | None:
+    """Gaussian elimination with partial pivoting for the small dense systems of the fast path
+    (pure Python: numpy.linalg.solve costs ~20 µs of call overhead for a 5×5)."""
+    n = len(rhs)
+    a = [row[:] + [rhs[i]] for i, row in enumerate(matrix)]
+    for col in range(n):
+        piv = max(range(col, n), key=lambda r: abs(a[r][col]))
+        if a[piv][col] == 0.0 or not math.isfinite(a[piv][col]):
+            return None
+        a[col], a[piv] = a[piv], a[col]
+        pivot_row = a[col]
+        inv = 1.0 / pivot_row[col]
+        for r in range(col + 1, n):
+            row = a[r]
+            factor = row[col] * inv
+            if factor != 0.0:
+                for k in range(col, n + 1):
+                    row[k] -= factor * pivot_row[k]
+    out = [0.0] * n
+    for r in range(n - 1, -1, -1):
+        acc = a[r][n]
+        for k in range(r + 1, n):
+            acc -= a[r][k] * out[k]
+        out[r] = acc / a[r][r]
+    return out
+
+
 def _norm(res, strain_scale):
     return max(
         abs(res[0]) / strain_scale,
@@ -215,8 +242,8 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
     x = x0
     norm = _norm(res, strain_scale)
     converged = False
-    jac = np.empty((5, 5))
-    dsig = np.empty((2, 5))
+    jac = [[0.0] * 5 for _ in range(5)]
+    dsig = [[0.0] * 5 for _ in range(2)]
     for _ in range(settings.max_iterations):
         for j in range(5):
             h = _FD * max(abs(x[j]), typical[j])
@@ -224,21 +251,18 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
             xp[j] += h
             rp, sap, srp, _ = model.evaluate(xp, ta, tr, beta_n, lnv_n)
             if rp is None:
-                raise ConvergenceError("mean stress ≤ 0 during the local Newton", state)
+                raise ConvergenceError("inadmissible point during the local Newton", state)
             for i in range(5):
-                jac[i, j] = (rp[i] - res[i]) / h
-            dsig[0, j] = (sap - sa) / h
-            dsig[1, j] = (srp - sr) / h
-        try:
-            step = np.linalg.solve(jac, -np.array(res))
-        except np.linalg.LinAlgError:
-            break
-        if not np.all(np.isfinite(step)):
+                jac[i][j] = (rp[i] - res[i]) / h
+            dsig[0][j] = (sap - sa) / h
+            dsig[1][j] = (srp - sr) / h
+        step = _solve(jac, [-r for r in res])
+        if step is None or not all(math.isfinite(v) for v in step):
             break
         alpha = 1.0
         accepted = False
         for _ in range(10):
-            xt = [x[i] + alpha * float(step[i]) for i in range(5)]
+            xt = [x[i] + alpha * step[i] for i in range(5)]
             rt, sat, srt, auxt = model.evaluate(xt, ta, tr, beta_n, lnv_n)
             if rt is not None:
                 nt = _norm(rt, strain_scale)
@@ -269,10 +293,15 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
             state,
         )  # fmt: skip
     pc, dpa, dpr, dbar, w = aux
-    try:
-        tangent = dsig @ np.linalg.solve(jac, np.eye(5)[:, :2])
-    except np.linalg.LinAlgError:
-        tangent = dsig[:, :2].copy()
+    # algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [e_1, e_2] (R_ε = ε^e − ε^e_n − Δε + ...)
+    tangent = np.empty((2, 2))
+    for k in range(2):
+        col = _solve(jac, [1.0 if i == k else 0.0 for i in range(5)])
+        if col is None:
+            tangent = np.array([[dsig[0][0], dsig[0][1]], [dsig[1][0], dsig[1][1]]])
+            break
+        for i in range(2):
+            tangent[i, k] = sum(dsig[i][j] * col[j] for j in range(5))
     new = State(
         strain=state.strain + triaxial(d_axial, d_radial),
         elastic_strain=triaxial(ea, er),
