@@ -139,7 +139,7 @@ def test_random_admissible_paths_dissipate(path, form):
         deps = 2e-3 * np.array(raw)
         new = advance(state, Control.strain(deps), TABLE1, options)
         work, d = checks.mechanical_dissipation(state, new, TABLE1, options)
-        assert d >= 0.0
+        assert d >= -1e-14 * state.mean_stress
         assert work == pytest.approx(d, rel=1e-7, abs=1e-10 * state.mean_stress)
         assert checks.fabric_within_bounds(state, new, TABLE1, options) < 1e-12
         assert checks.yield_value(new, TABLE1, options) < 1e-9
