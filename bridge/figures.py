@@ -30,7 +30,7 @@ NAMES = {"isotropic": "isotropic A→B", "k0": "K0 A→C", "unloading": "unloadi
 
 def _tag(ds: xr.Dataset, name: str) -> str:
     role = ds[name].attrs.get("role", "out_of_sample")
-    return "fitted" if role == "fitted" else "out of sample"
+    return {"fitted": "fitted", "input": "driven by the DEM path"}.get(role, "out of sample")
 
 
 def _stress_paths(ax, series, runs, probes, model_probes):
@@ -214,7 +214,7 @@ def write_figures(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
-    args = (series, probes, runs, model_probes)
+    args = (series, runs, probes, model_probes)
     for name in PANELS:
         fig, ax = plt.subplots(figsize=(6.0, 4.5))
         _DRAW[name](ax, *args)

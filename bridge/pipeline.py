@@ -249,6 +249,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-k0-increments", type=int, default=12)
     parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
     parser.add_argument("--no-figures", action="store_true")
+    parser.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
     args = parser.parse_args(argv)
     stress_scale = args.stress_scale
     if args.synthetic:
@@ -280,6 +281,7 @@ def main(argv: list[str] | None = None) -> int:
         calibration=calibration,
         k0_mode=args.k0_mode,
         figures=not args.no_figures,
+        stages=tuple(args.stages),
     )
     outcome = calibrate_from_results(history, probes, args.out, options)
     print(Path(outcome["files"]["calibration_text"]).read_text())

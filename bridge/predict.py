@@ -12,8 +12,9 @@ Two kinds of prediction (each a dataset along ``point``, the DEM's points of the
   E_h/E_v. Along K0 this is the back-prediction of the stiffness anisotropy from the measured
   fabric.
 
-Every variable has the attribute ``role``: ``"fitted"`` when the same (path, variable) entered a
-residual of the calibration (:attr:`bridge.calibration.CalibrationResult.fitted_`), else
+Every variable has the attribute ``role``: ``"input"`` where the driver prescribes it (the
+stresses of stress-controlled runs, σ_a along K0), ``"fitted"`` when the same (path, variable)
+entered a residual of the calibration (:attr:`bridge.calibration.CalibrationResult.fitted_`), else
 ``"out_of_sample"``; E_h/E_v is fitted only where both moduli were. Where the DEM has the same
 variable, the attribute ``error_rms`` gives the RMS difference model − DEM (relative, i.e. of
 ln, for v and moduli; absolute for β and η), and ``dem_<name>`` holds the DEM values.
@@ -53,14 +54,24 @@ def _role(fitted: set, path: str, name: str) -> str:
     return "fitted" if (path, name) in fitted else "out_of_sample"
 
 
-def _dataset(values, dem: xr.Dataset, path: str, fitted: set, attrs: dict) -> xr.Dataset:
+#: Stress variables prescribed by each driver (role "input": the model follows the DEM there).
+_STRESSES = ("axial_stress", "radial_stress", "mean_stress", "deviatoric_stress", "stress_ratio")
+_INPUTS = {
+    "isotropic": _STRESSES,
+    "k0:element": ("axial_stress",),
+    "k0:stress": _STRESSES,
+    "unloading": _STRESSES,
+}
+
+
+def _dataset(values, dem: xr.Dataset, path: str, fitted: set, attrs: dict, inputs=()) -> xr.Dataset:
     data = {}
     for name, array in values.items():
         units, long_name = SERIES_VARIABLES.get(name) or _UNITS[name]
         var_attrs = {
             "units": units,
             "long_name": "TIV " + long_name,
-            "role": _role(fitted, path, name),
+            "role": "input" if name in inputs else _role(fitted, path, name),
         }
         dem_values = _dem_values(dem, name)
         if dem_values is not None:
@@ -195,9 +206,9 @@ def predict_paths(
         except TivModelError as exc:
             raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
         values = {k: run[k] for k in keep}
-        out[path] = _dataset(
-            values, dem, path, fitted, {"kind": "model run", "driver": driver, "k0_mode": k0_mode}
-        )
+        inputs = _INPUTS[f"k0:{k0_mode}" if path == "k0" else path]
+        attrs = {"kind": "model run", "driver": driver, "k0_mode": k0_mode}
+        out[path] = _dataset(values, dem, path, fitted, attrs, inputs)
     return out
 
 
@@ -234,11 +245,12 @@ def predict_probes(
 
 
 def summary(predictions: Mapping[str, xr.Dataset]) -> list[dict[str, object]]:
-    """Rows (path, variable, role, error_rms, error_measure, kind) of every compared variable."""
+    """Rows (path, variable, role, error_rms, error_measure, kind) of every compared variable
+    that the model predicts (prescribed inputs left out)."""
     rows = []
     for path, ds in predictions.items():
         for name, var in ds.data_vars.items():
-            if "error_rms" in var.attrs:
+            if "error_rms" in var.attrs and var.attrs.get("role") != "input":
                 rows.append(
                     {
                         "path": path,

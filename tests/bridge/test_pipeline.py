@@ -1,0 +1,129 @@
+"""Predictions, figures, report and the pipeline on synthetic DEM-schema files."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bridge.calibration import CalibrationOptions
+from bridge.pipeline import PipelineOptions, calibrate_from_results, main
+from bridge.predict import PredictionError, predict_paths, predict_probes
+from bridge.series import SeriesError, all_probe_series, history_series
+
+from .conftest import CONVENTION, TRUTH
+
+
+def test_predictions_reproduce_the_generating_model(synthetic):
+    series = history_series(synthetic.history, CONVENTION)
+    runs = predict_paths(TRUTH, series)
+    for path in ("isotropic", "k0", "unloading"):
+        for name in ("specific_volume", "fabric", "e_oed_v", "e_oed_h"):
+            np.testing.assert_allclose(
+                runs[path][name].values,
+                synthetic.model[path][name].values,
+                rtol=1e-7,
+                atol=1e-9,
+                err_msg=f"{path} {name}",
+            )
+    stress_driven = predict_paths(TRUTH, series, k0_mode="stress")["k0"]
+    np.testing.assert_allclose(
+        stress_driven["fabric"].values, series["k0"]["fabric"].values, atol=1e-7
+    )
+    assert stress_driven["radial_stress"].attrs["role"] == "input"
+    assert runs["k0"]["radial_stress"].attrs["role"] == "out_of_sample"
+    assert runs["isotropic"]["mean_stress"].attrs["role"] == "input"
+    with pytest.raises(PredictionError, match="k0_mode"):
+        predict_paths(TRUTH, series, k0_mode="strain")
+
+
+def test_predictions_fail_clearly(synthetic):
+    series = history_series(synthetic.history, CONVENTION)
+    with pytest.raises(PredictionError, match="needs the 'k0' path"):
+        predict_paths(TRUTH, {"unloading": series["unloading"]})
+    probes = all_probe_series(synthetic.probes, CONVENTION)
+    with pytest.raises(PredictionError, match="probes of path k0"):
+        predict_probes(TRUTH.replace(omega=500.0), probes)
+
+
+def _write_inputs(synthetic, folder, with_scale=True):
+    from dem_taichi.io import write_dataset
+
+    folder.mkdir(parents=True, exist_ok=True)
+    history = synthetic.history.copy()
+    if not with_scale:
+        history.attrs.pop("stress_scale_kpa")
+    history.to_netcdf(folder / "relaxed_states.nc")
+    # a full history.nc beside it: the loading records would make the series wrong
+    history.isel(time=slice(0, 3)).to_netcdf(folder / "history.nc")
+    write_dataset(folder / "probes.nc", synthetic.probes)
+    return folder / "history.nc", folder / "probes.nc"
+
+
+FAST = CalibrationOptions(initial=TRUTH.replace(c=1.3), fixed=("s", "z", "M"), max_k0_increments=6)
+
+
+def test_pipeline_writes_calibration_predictions_figures_and_report(synthetic, tmp_path):
+    history, probes = _write_inputs(synthetic, tmp_path / "dem")
+    options = PipelineOptions(fabric_scale=CONVENTION.fabric_scale, calibration=FAST)
+    outcome = calibrate_from_results(history, probes, tmp_path / "out", options)
+    assert outcome["parameters"]["k"] == pytest.approx(TRUTH.k, rel=1e-8)
+    assert outcome["parameters"]["c"] == pytest.approx(TRUTH.c, rel=1e-6)
+    assert "k0 (probes):stiffness_ratio" in outcome["out_of_sample"]
+    assert ["k0", "fabric"] in outcome["fitted"]
+    assert "relaxed_states.nc" in outcome["data"]["history"]
+    assert "from the attribute stress_scale_kpa" in outcome["data"]["stress scale"]
+    for key in (
+        "report",
+        "calibration",
+        "figure_overview",
+        "figure_anisotropy",
+        "prediction_k0",
+        "prediction_probes_k0",
+    ):
+        assert (tmp_path / "out" / outcome["files"][key].split("/")[-1]).exists(), key
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "| k |" in report and "± " in report and "out_of_sample" in report
+    assert "Back-prediction of the stiffness anisotropy along K0" in report
+    saved = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert saved["parameters"]["omega"] == pytest.approx(TRUTH.omega, rel=1e-8)
+
+
+def test_pipeline_needs_a_stress_scale(synthetic, tmp_path):
+    history, probes = _write_inputs(synthetic, tmp_path / "dem", with_scale=False)
+    with pytest.raises(SeriesError, match="stress_scale_kpa"):
+        calibrate_from_results(history, probes, tmp_path / "out", PipelineOptions())
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        calibrate_from_results(tmp_path / "nothing.nc", probes, tmp_path / "out")
+
+
+def test_command_line(synthetic, tmp_path, capsys):
+    history, probes = _write_inputs(synthetic, tmp_path / "dem")
+    code = main(
+        [
+            "--history",
+            str(history),
+            "--probes",
+            str(probes),
+            "--out",
+            str(tmp_path / "cli"),
+            "--fabric-scale",
+            "2",
+            "--stages",
+            "compressibility",
+            "elastic",
+            "--no-figures",
+        ]
+    )
+    assert code == 0
+    assert "Calibration of the TIV model" in capsys.readouterr().out
+    assert (tmp_path / "cli" / "report.md").exists()
+
+
+@pytest.mark.slow
+def test_command_line_synthetic_recovers_all_parameters(tmp_path, capsys):
+    """``python -m bridge.pipeline --synthetic``: every stage from Table 1 (≈ 20–60 s)."""
+    assert main(["--synthetic", "--out", str(tmp_path)]) == 0
+    saved = json.loads((tmp_path / "calibration.json").read_text())
+    want = TRUTH.as_symbols()
+    for sym, value in saved["parameters"].items():
+        assert value == pytest.approx(want[sym], rel=1e-5), sym
