@@ -108,7 +108,6 @@ def write_figures(result, geometry) -> dict[str, str]:
 
     out = Path(result.out_dir)
     files: dict[str, str] = {}
-    history = open_history(out / "history.nc")
     relaxed = open_history(out / "relaxed_states.nc")
     configurations = {}
     for label in result.states:
@@ -118,7 +117,9 @@ def write_figures(result, geometry) -> dict[str, str]:
     geo = {"n_spheres": geometry.n_spheres, "spacing": geometry.spacing,
            "diameter": geometry.diameter}  # fmt: skip
     files["figure_paths"] = str(
-        figure_paths(history, configurations, out / "figure_paths.png", geo)
+        # relaxed (quasi-static) path states; loading records with their dynamic stress
+        # fluctuations stay in history.nc
+        figure_paths(relaxed, configurations, out / "figure_paths.png", geo)
     )
     probes = open_probes(result.files["probes"]) if "probes" in result.files else None
     files["figure_states"] = str(figure_states(relaxed, probes, out / "figure_states.png"))
