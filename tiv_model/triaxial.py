@@ -51,6 +51,11 @@ class TriaxialModel:
         self.exponential = options.bound_law is exponential_bound
         self.bound_a = params.s / params.M
         self.bound_scale = params.maximum_fabric
+        self.c = params.c
+        self.m2 = params.M * params.M
+        self.p_r = params.p_r
+        self.inv_lambda = 1.0 / params.lambda_star
+        self.omega = params.omega
 
     def bound_factor(self, eta: float) -> float:
         """f(η) of the bound law (β_b = f(η) q/p in triaxial terms)."""
@@ -63,7 +68,7 @@ class TriaxialModel:
 
     def stress(self, ea: float, er: float, beta: float, lnv: float):
         """(σ_a, σ_r, σ̃_a, σ̃_r, Q̃, F) at elastic strains (ε_a, ε_r), fabric β, ln v."""
-        om = self.params.omega
+        om = self.omega
         if self.form_a:
             b = om * abs(beta) * beta
             ta = (1.0 - 2.0 * b / 3.0) * ea
@@ -101,11 +106,10 @@ class TriaxialModel:
 
     def _evaluate(self, x, trial_a, trial_r, beta_n, lnv_n):
         ea, er, mu, beta, lnv = x
-        par = self.params
         sa, sr, sta, st_r, quad, factor = self.stress(ea, er, beta, lnv)
         p = (sa + 2.0 * sr) / 3.0
         q = sa - sr
-        pc = par.p_r * math.exp(-(lnv - self.ln_n) / par.lambda_star)
+        pc = self.p_r * math.exp(-(lnv - self.ln_n) * self.inv_lambda)
         if not p > 0.0:
             return None, sa, sr, None
         eta = abs(q) / p
@@ -113,7 +117,7 @@ class TriaxialModel:
         if self.cf:
             phi = factor * math.exp(self.ln_c0 + self.a * math.log(quad))
             shift = -self.x * phi
-            om = par.omega
+            om = self.omega
             if self.form_a:
                 dta = -4.0 / 3.0 * om * abs(beta) * ea
                 dtr = 2.0 / 3.0 * om * abs(beta) * er
@@ -121,13 +125,13 @@ class TriaxialModel:
                 d = ea - er
                 dta = -8.0 / 9.0 * om * beta * d
                 dtr = 4.0 / 9.0 * om * beta * d
-            size = 0.5 * pc + par.c * (sta * dta + 2.0 * st_r * dtr) * (bb - beta)
+            size = 0.5 * pc + self.c * (sta * dta + 2.0 * st_r * dtr) * (bb - beta)
         else:
             shift = 0.0
             size = 0.5 * pc
         ph = p - shift
         rq = q - ph * beta
-        m2 = par.M * par.M - beta * beta
+        m2 = self.m2 - beta * beta
         y = rq * rq - m2 * (size * size - (ph - 0.5 * pc) ** 2)
         iso = 2.0 / 3.0 * m2 * (ph - 0.5 * pc) - 2.0 / 3.0 * rq * beta
         scale = mu / pc
@@ -136,7 +140,7 @@ class TriaxialModel:
         dd = dpa - dpr
         w = dpa + 2.0 * dpr + 2.0 / 3.0 * beta * dd
         dbar = math.sqrt(w * w + 4.0 / 9.0 * m2 * dd * dd)
-        cd = par.c * dbar
+        cd = self.c * dbar
         res = (
             ea - trial_a + dpa,
             er - trial_r + dpr,
@@ -204,8 +208,8 @@ def elastic_tangent(model: TriaxialModel, ea: float, er: float, beta: float, lnv
 
 
 def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: float,
-                settings: SolverSettings):  # fmt: skip
-    """One axisymmetric backward-Euler increment: (new State, 2×2 tangent dσ/dΔε)."""
+                settings: SolverSettings, need_tangent: bool = True):  # fmt: skip
+    """One axisymmetric backward-Euler increment: (new State, 2×2 tangent dσ/dΔε or None)."""
     par = model.params
     ea_n, er_n = float(state.elastic_strain[0]), float(state.elastic_strain[1])
     beta_n = float(state.fabric[0] - state.fabric[1])
@@ -223,7 +227,7 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
             state,
         )
     if res[2] <= 1e-12:
-        tangent = elastic_tangent(model, ta, tr, beta_n, lnv_n)
+        tangent = elastic_tangent(model, ta, tr, beta_n, lnv_n) if need_tangent else None
         new = State(
             strain=state.strain + triaxial(d_axial, d_radial),
             elastic_strain=triaxial(ta, tr),
@@ -294,8 +298,8 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
         )  # fmt: skip
     pc, dpa, dpr, dbar, w = aux
     # algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [e_1, e_2] (R_ε = ε^e − ε^e_n − Δε + ...)
-    tangent = np.empty((2, 2))
-    for k in range(2):
+    tangent = np.empty((2, 2)) if need_tangent else None
+    for k in range(2 if need_tangent else 0):
         col = _solve(jac, [1.0 if i == k else 0.0 for i in range(5)])
         if col is None:
             tangent = np.array([[dsig[0][0], dsig[0][1]], [dsig[1][0], dsig[1][1]]])
@@ -342,7 +346,7 @@ def mixed_step(
         0.0 if sc[1] else float(control.strain_increment[1]),
     ]
     if not (sc[0] or sc[1]):
-        return local_solve(model, state, deps[0], deps[1], settings)[0]
+        return local_solve(model, state, deps[0], deps[1], settings, need_tangent=False)[0]
     target = (float(control.stress_target[0]), float(control.stress_target[1]))
     u = [i for i in (0, 1) if sc[i]]
     if guess is not None and all(math.isfinite(float(g)) for g in guess[:2]):
