@@ -413,7 +413,8 @@ class ProtocolRunner:
                 f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}"
             )
             if candidate is None:
-                if is_candidate and h > c.min_compression_increment * (1 + 1e-12):
+                resolved = measures["mean_stress"] <= c.transition_pressure_factor * tol
+                if is_candidate and not resolved and h > c.min_compression_increment * (1 + 1e-12):
                     sim.set_state(previous[0])
                     h = max(0.5 * h, c.min_compression_increment)
                     entry["restored"] = True
@@ -457,7 +458,9 @@ class ProtocolRunner:
             "rule": transition.rule
             + f"; confirmed over {c.confirm_increments} further relaxed increments; "
             "increments bisected (sample restored to the previous relaxed state, increment "
-            f"halved) from {c.compression_increment:g} down to {c.min_compression_increment:g}",
+            f"halved) from {c.compression_increment:g} until p <= "
+            f"{c.transition_pressure_factor:g} x tolerance or the increment reaches "
+            f"{c.min_compression_increment:g}",
             "pressure_tolerance": tol,
             "coordination_min": c.coordination_min,
             "detector_index": transition.index,

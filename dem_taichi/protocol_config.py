@@ -79,8 +79,12 @@ class ProtocolConfig(SceneSection):
     - ``radial_stress_ratios`` [""]: comma-separated η = q/p of the radial paths ("" = none).
     - ``run_isotropic``, ``run_k0``, ``run_unloading`` [true]: which paths run (C→B needs K0).
     - ``compression_increment`` [0.02]: per-axis logarithmic strain of a compression increment
-      towards A (coarse); refined by halving down to ``min_compression_increment`` [0.0025]
-      when a candidate A is found (the sample is then restored to the previous relaxed state).
+      towards A (coarse); refined by halving down to ``min_compression_increment`` [1e-5]
+      when a candidate A is found (the sample is then restored to the previous relaxed state);
+      halving stops early once a candidate has p ≤ ``transition_pressure_factor`` [4.0] ×
+      ``pressure_tolerance`` (the transition is then resolved). Frictional rods without
+      long-range forces jam abruptly: on the default scene (neutral) one increment of 0.0025
+      jumps from p ≈ 0 to p ≈ 2500, hence the small floor [1e-5].
     - ``gas_strain_rate`` [0.05]: strain-rate cap (1/time) of the compression while p ≤
       ``pressure_tolerance`` (the inertial-number cap of [control] applies once p > 0).
     - ``pressure_tolerance`` [0.5]: relaxed static p above which a state carries load (DEM).
@@ -119,9 +123,8 @@ class ProtocolConfig(SceneSection):
     run_k0: bool = True
     run_unloading: bool = True
     compression_increment: float = field(default=0.02, metadata=_range(0.0, 0.2, lo_open=True))
-    min_compression_increment: float = field(
-        default=0.0025, metadata=_range(0.0, 0.2, lo_open=True)
-    )
+    min_compression_increment: float = field(default=1e-5, metadata=_range(0.0, 0.2, lo_open=True))
+    transition_pressure_factor: float = field(default=4.0, metadata=_range(1.0))
     gas_strain_rate: float = field(default=0.05, metadata=_range(0.0, None, lo_open=True))
     pressure_tolerance: float = field(default=0.5, metadata=_range(0.0, None, lo_open=True))
     coordination_min: float = field(default=3.0, metadata=_range(0.0))
