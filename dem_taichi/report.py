@@ -215,8 +215,8 @@ def write_report(result, path: Path | None = None) -> Path:
             "## All probes",
             "",
             "| probe | path | p | v | β_yy−β_xx | E_v dyn | E_v lin | E_h dyn | E_h lin | "
-            "E_h/E_v dyn | E_h/E_v lin | elastic limit v/h | dyn s | lin s |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "E_h/E_v dyn | E_h/E_v lin | elastic limit v/h | dyn s | lin s | base Δσ/p |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for pr in result.probes:
             m = pr.measures
@@ -232,9 +232,17 @@ def write_report(result, path: Path | None = None) -> Path:
                 f"{_fmt(ev_l)} | {_fmt(eh_d)} | {_fmt(eh_l)} | "
                 f"{_fmt(eh_d / ev_d if ev_d else math.nan, 3)} | "
                 f"{_fmt(eh_l / ev_l if ev_l else math.nan, 3)} | {lim} | "
-                f"{pr.dynamic_seconds:.1f} | {pr.linear_seconds:.3f} |"
+                f"{pr.dynamic_seconds:.1f} | {pr.linear_seconds:.3f} | "
+                f"{pr.base_stress_change:.1e} |"
             )
-        lines += ["", "Degradation curves (secant E against amplitude):", ""]
+        lines += [
+            "",
+            "Probes are made on a copy of the path state relaxed further to the probes' UFR "
+            "threshold; base Δσ/p is the largest stress change of that relaxation.",
+            "",
+            "Degradation curves (secant E against amplitude):",
+            "",
+        ]
         for pr in result.probes:
             for axis, curve in pr.curves.items():
                 pts = ", ".join(
