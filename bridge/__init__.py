@@ -1,6 +1,27 @@
 """Bridge from DEM results (netCDF histories) to the TIV model: series, calibration, predictions.
 
-Reads DEM *results* only (plain xarray), never the engine, so it runs without Taichi.
+Reads DEM *results* only (``dem_taichi.io``: numpy/netCDF/xarray), never the engine, so it runs
+without Taichi. Modules, in the order of the pipeline:
+
+- :mod:`bridge.series` — DEM history/probes → model series per path (isotropic A→B, K0 A→C,
+  unloading C→B) with a stated, switchable 2D → 3D convention (``"triaxial"`` default,
+  ``"plane"``), an explicit stress scale (kPa per DEM unit) and fabric sign/scale
+  (β_model = −F (β_yy − β_xx)); the inverse writes DEM-schema datasets of model runs;
+- :mod:`bridge.moduli` — the model's elastic moduli at measured states (batched inversion);
+- :mod:`bridge.runs` — model runs along the DEM paths, sampled at the DEM points;
+- :mod:`bridge.calibration` — staged least squares (compressibility λ*, N; elastic k, g, n, r,
+  ω; fabric c, s, z, M) with standard errors and fit quality;
+- :mod:`bridge.predict` — predictions labelled fitted / out of sample (E_h/E_v along K0);
+- :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
+- :mod:`bridge.pipeline` — ``calibrate_from_results`` and ``python -m bridge.pipeline``;
+- :mod:`bridge.synthetic` — DEM-like results made by the model itself (exact-recovery checks).
+
+Example::
+
+    from bridge.pipeline import PipelineOptions, calibrate_from_results
+    outcome = calibrate_from_results("run/history.nc", "run/probes.nc", "run/bridge",
+                                     PipelineOptions(stress_scale_kpa=1.0))
+    outcome["parameters"], outcome["files"]["report"]
 """
 
 __version__ = "0.1.0"

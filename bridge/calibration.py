@@ -651,7 +651,8 @@ def calibrate(
                 params, fits[stage] = _fit_stage(built[stage], params, options.free(stage), options)
             history.append(params.as_symbols())
             after = np.array(list(params.as_symbols().values()))
-            if np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-12)) < 1e-10:
+            # relative change; parameters at a zero bound (r = 0...) count in absolute terms
+            if np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-6)) < 1e-10:
                 break
     return CalibrationResult(params, initial, [fits[s] for s in stages], options, passes, history)
 

@@ -146,3 +146,19 @@ def test_all_stages_recover_table1_perturbed_from_table1(data):
     for sym, value in want.items():
         assert got[sym] == pytest.approx(value, rel=1e-4), sym
     assert not result.warnings()
+
+
+@pytest.mark.slow
+def test_noise_on_fabric_estimates_within_the_standard_errors(synthetic):
+    """Fabric stage on K0 data with fabric noise 0.004 (absolute, on the model's β): c, s, z and
+    M within 4 standard errors of the truth (≈ 30–90 s)."""
+    history, probes = add_noise(synthetic.history, synthetic.probes, {"fabric": 0.002}, seed=11)
+    series = history_series(history, CONVENTION)
+    options = CalibrationOptions(
+        initial=TRUTH.replace(c=1.2, s=12.0, z=5.5, M=1.05), max_k0_increments=6
+    )
+    result = calibrate(series, {}, options, ("fabric",))
+    for sym in ("c", "s", "z", "M"):
+        err = result.standard_errors_[sym]
+        z = (result.params_.as_symbols()[sym] - TRUTH.as_symbols()[sym]) / err
+        assert math.isfinite(err) and abs(z) < 4.0, (sym, z, err)
