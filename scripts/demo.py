@@ -49,6 +49,7 @@ def sanity_summary(ds) -> dict[str, float]:
         "fabric at 100 kPa": _at_axial_stress(ds, 100.0, "fabric"),
         "E_h/E_v at 100 kPa": _at_axial_stress(ds, 100.0, "stiffness_ratio"),
         "E_h/E_v at end of K0": float(ds.where(ds.stage == 0, drop=True).stiffness_ratio[-1]),
+        "end of K0 (kPa)": float(ds.where(ds.stage == 0, drop=True).axial_stress[-1]),
         "plastic unloading increments": (
             float(unloading.plastic.sum()) if unloading is not None else float("nan")
         ),
@@ -160,13 +161,14 @@ def run_tiv_demo(out_dir: Path, smoke: bool) -> dict:
         "β ≈ 0.13 at σ_v = 100 kPa, E_h/E_v above 2 by 100 kPa, elastic constant-p unloading):",
         "",
         "| variant | K0 at 100 kPa | β at 100 kPa | E_h/E_v at 100 kPa | E_h/E_v end of K0 "
-        "| plastic unloading increments |",
+        "(σ_v) | plastic unloading increments |",
         "|---|---|---|---|---|---|",
     ]
     for name, s in variants.items():
         lines.append(
             f"| {name} | {s['K0 at 100 kPa']:.4f} | {s['fabric at 100 kPa']:.4f} | "
-            f"{s['E_h/E_v at 100 kPa']:.3f} | {s['E_h/E_v at end of K0']:.3f} | "
+            f"{s['E_h/E_v at 100 kPa']:.3f} | {s['E_h/E_v at end of K0']:.3f} "
+            f"({s['end of K0 (kPa)']:.0f} kPa) | "
             f"{s['plastic unloading increments']:.0f} |"
         )
     lines += ["", "Files:", ""]
