@@ -94,6 +94,7 @@ DEFAULT_SCALES: Mapping[str, float] = MappingProxyType(
 )
 FABRIC_SERIES = ("fabric", "stress_ratio", "specific_volume")
 ELASTIC_MODULI = ("e_oed_v", "e_oed_h", "e_cross")
+INITIAL_FABRIC = ("zero", "measured")
 _SYMBOL_TO_NAME = {sym: name for name, sym in SYMBOLS.items()}
 UNITS = {sym: PARAMETER_INFO[name][1] for name, sym in SYMBOLS.items()}
 
@@ -111,6 +112,9 @@ class CalibrationOptions:
     initial: starting values; parameters listed in ``fixed`` (study symbols) keep them.
     fit_critical_stress_ratio: fit M in the fabric stage from the K0 stress ratio (else fixed).
     omega_stage: ``"elastic"`` (default) or ``"fabric"`` (the study's grouping), where ω is fitted.
+    initial_fabric: the model's fabric at A: ``"zero"`` (default, isotropic as in the model's
+        standard start) or ``"measured"`` (the DEM's β at A; p_c from the rotated yield surface,
+        :func:`bridge.runs.start_state`).
     fabric_series: K0 series fitted in the fabric stage, among ``FABRIC_SERIES``.
     elastic_moduli: probe moduli fitted in the elastic stage, among ``ELASTIC_MODULI``
         (the cross term is used only where the probes have it).
@@ -131,6 +135,7 @@ class CalibrationOptions:
     fixed: tuple[str, ...] = ()
     fit_critical_stress_ratio: bool = True
     omega_stage: str = "elastic"
+    initial_fabric: str = "zero"
     fabric_series: tuple[str, ...] = ("fabric", "stress_ratio")
     elastic_moduli: tuple[str, ...] = ELASTIC_MODULI
     elastic_paths: tuple[str, ...] = ("isotropic", "unloading")
@@ -161,6 +166,10 @@ class CalibrationOptions:
         if self.omega_stage not in ("elastic", "fabric"):
             raise CalibrationError(
                 f"option omega_stage = {self.omega_stage!r}: use 'elastic' or 'fabric'"
+            )
+        if self.initial_fabric not in INITIAL_FABRIC:
+            raise CalibrationError(
+                f"option initial_fabric = {self.initial_fabric!r}: use one of {INITIAL_FABRIC}"
             )
         if not self.fabric_series:
             raise CalibrationError("option fabric_series must name at least one K0 series")
@@ -467,6 +476,8 @@ class _Fabric(_Stage):
             raise CalibrationError("stage fabric needs the K0 path with ≥ 2 points (A and C)")
         self.axial = series["axial_stress"].values
         self.p_start = float(series["mean_stress"].values[0])
+        measured = options.initial_fabric == "measured"
+        self.start_fabric = float(series["fabric"].values[0]) if measured else 0.0
         self.data = {name: series[name].values[1:] for name in options.fabric_series}
         self.model_options = options.model_options
         self.max_increments = options.max_k0_increments
@@ -479,7 +490,14 @@ class _Fabric(_Stage):
         self.fitted = tuple(("k0", n) for n in options.fabric_series)
 
     def pieces(self, params):
-        run = k0_run(self.axial, self.p_start, params, self.model_options, self.max_increments)
+        run = k0_run(
+            self.axial,
+            self.p_start,
+            params,
+            self.model_options,
+            self.max_increments,
+            start_fabric=self.start_fabric,
+        )
         out = {}
         for name, data in self.data.items():
             model = run[name][1:]

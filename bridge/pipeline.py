@@ -125,7 +125,14 @@ def calibrate_from_results(
         stages = tuple(s for s in stages if s != "elastic")
     result = calibrate(series, probes, options.calibration, stages)
     model_options = options.calibration.model_options
-    runs = predict_paths(result, series, model_options, options.k0_mode, options.max_increments)
+    runs = predict_paths(
+        result,
+        series,
+        model_options,
+        options.k0_mode,
+        options.max_increments,
+        options.calibration.initial_fabric,
+    )
     model_probes = predict_probes(result, probes, model_options) if probes else {}
     files: dict[str, str] = {}
     for path, ds in runs.items():
@@ -151,6 +158,7 @@ def calibrate_from_results(
         "fabric": convention.attrs()["convention_fabric"] + f", F = {convention.fabric_scale:g}",
         "moduli": convention.attrs()["convention_moduli"],
         "stages": ", ".join(stages),
+        "model fabric at A": options.calibration.initial_fabric,
     }
     text = report_markdown(result, runs, model_probes, probes, description, figures, out)
     files["report"] = str(write_report(out / "report.md", text))
@@ -244,6 +252,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fix", nargs="*", default=[], help="symbols held at Table 1 values")
     parser.add_argument("--fix-M", action="store_true", help="do not fit M (Table 1 value)")
     parser.add_argument("--omega-stage", default="elastic", choices=("elastic", "fabric"))
+    parser.add_argument(
+        "--initial-fabric",
+        default="zero",
+        choices=("zero", "measured"),
+        help="model fabric at A: isotropic (zero) or the DEM's",
+    )
     parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
     parser.add_argument("--passes", type=int, default=30, help="most cycles of coupled stages")
     parser.add_argument("--max-k0-increments", type=int, default=12)
@@ -269,6 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         fixed=tuple(args.fix),
         fit_critical_stress_ratio=not args.fix_M,
         omega_stage=args.omega_stage,
+        initial_fabric=args.initial_fabric,
         fabric_series=tuple(args.fabric_series),
         passes=args.passes,
         max_k0_increments=args.max_k0_increments,

@@ -124,15 +124,25 @@ def predict_paths(
     options: ModelOptions = DEFAULT_OPTIONS,
     k0_mode: str = "element",
     max_increments: int = 40,
+    initial_fabric: str = "zero",
 ) -> dict[str, xr.Dataset]:
     """Model runs along each DEM path in ``series`` (see the module docstring).
+
+    ``initial_fabric``: the model's β at A, ``"zero"`` or ``"measured"`` (the DEM's β at the
+    first point of the path; see :func:`bridge.runs.start_state`).
 
     ``calibrated``: a :class:`bridge.calibration.CalibrationResult` (roles from what it fitted)
     or plain :class:`tiv_model.params.Parameters` (everything out of sample).
     """
     if k0_mode not in K0_MODES:
         raise PredictionError(f"k0_mode = {k0_mode!r}: use one of {K0_MODES}")
+    if initial_fabric not in ("zero", "measured"):
+        raise PredictionError(f"initial_fabric = {initial_fabric!r}: use 'zero' or 'measured'")
     params, fitted = _params_and_fitted(calibrated)
+
+    def beta_a(ds: xr.Dataset) -> float:
+        return float(ds["fabric"].values[0]) if initial_fabric == "measured" else 0.0
+
     out: dict[str, xr.Dataset] = {}
     keep = (
         "axial_stress",
@@ -155,7 +165,9 @@ def predict_paths(
         dem = series[path]
         try:
             if path == "isotropic":
-                run = isotropic_run(dem["mean_stress"].values, params, options, max_increments)
+                run = isotropic_run(
+                    dem["mean_stress"].values, params, options, max_increments, beta_a(dem)
+                )
                 driver = "isotropic stress control through the DEM's p"
             elif path == "k0":
                 if k0_mode == "element":
@@ -166,6 +178,7 @@ def predict_paths(
                         options,
                         max_increments,
                         return_state=True,
+                        start_fabric=beta_a(dem),
                     )
                     driver = "K0 (radial strain 0) through the DEM's axial stress"
                 else:
@@ -176,6 +189,7 @@ def predict_paths(
                         options,
                         None,
                         max_increments,
+                        beta_a(dem),
                     )
                     driver = "stress control along the DEM's (sigma_a, sigma_r) history"
             else:
@@ -193,6 +207,7 @@ def predict_paths(
                         options,
                         max_increments,
                         return_state=True,
+                        start_fabric=beta_a(k0),
                     )
                 run = unloading_run(
                     dem["mean_stress"].values,
@@ -207,7 +222,12 @@ def predict_paths(
             raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
         values = {k: run[k] for k in keep}
         inputs = _INPUTS[f"k0:{k0_mode}" if path == "k0" else path]
-        attrs = {"kind": "model run", "driver": driver, "k0_mode": k0_mode}
+        attrs = {
+            "kind": "model run",
+            "driver": driver,
+            "k0_mode": k0_mode,
+            "initial_fabric": initial_fabric,
+        }
         out[path] = _dataset(values, dem, path, fitted, attrs, inputs)
     return out
 

@@ -1,7 +1,8 @@
 """TIV model runs along the DEM's paths, sampled at the DEM's points.
 
-Every run starts, like the DEM, at state A: the model's normally consolidated isotropic state at
-the DEM's p_A (isotropic fabric, :func:`tiv_model.integrate.initial_state`). The paths are
+Every run starts, like the DEM, at state A: the model's isotropic state at the DEM's p_A on the
+yield surface, with isotropic fabric (default, :func:`tiv_model.integrate.initial_state`) or a
+given fabric β_A such as the DEM's measured one (:func:`start_state`). The paths are
 driven with the model's own controls (:class:`tiv_model.integrate.Control`):
 
 * :func:`isotropic_run`: σ_a = σ_r = p_k at the DEM's isotropic-path p_k (stress control);
@@ -23,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from tiv_model.drivers import record, run_path
+from tiv_model.errors import TivModelError
 from tiv_model.integrate import Control, initial_state
 from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
 from tiv_model.state import State
@@ -72,17 +74,67 @@ def _run(start: State, controls, params, options, settings=None) -> tuple[list[S
     return run_path(start, controls, params, options, on_error="raise", **kwargs)
 
 
-def start_state(mean_stress: float, params: Parameters, options: ModelOptions) -> State:
-    """State A of the model: normally consolidated, isotropic, at p_A (kPa)."""
-    return initial_state(float(mean_stress), params, options)
+def start_state(
+    mean_stress: float, params: Parameters, options: ModelOptions, fabric: float = 0.0
+) -> State:
+    """State A of the model at isotropic stress p_A (kPa), on the yield surface.
+
+    ``fabric`` = 0 (default): the model's normally consolidated isotropic state
+    (:func:`tiv_model.integrate.initial_state`). Otherwise the triaxial fabric β_A (e.g. the
+    DEM's measured one): p_c is the root of y(p_c) = 0 at σ = p_A I with v = N (p_c/p_r)^(−λ*)
+    (the rotated ellipse puts p_c above its isotropic value), found by Brent's method.
+    """
+    p = float(mean_stress)
+    if fabric == 0.0:
+        return initial_state(p, params, options)
+    from scipy.optimize import brentq
+
+    from tiv_model.dissipation import YieldEvaluation, specific_volume_for_preconsolidation
+    from tiv_model.integrate import normally_consolidated_preconsolidation, state_from_stress
+    from tiv_model.tensors import TRIAXIAL_DIRECTION_MANDEL
+
+    beta = float(fabric) * TRIAXIAL_DIRECTION_MANDEL
+    stress = np.array([p, p, p, 0.0, 0.0, 0.0])
+
+    def state(pc: float) -> State:
+        v = float(specific_volume_for_preconsolidation(pc, params))
+        return state_from_stress(stress, v, beta, params, options)
+
+    def y(pc: float) -> float:
+        st = state(pc)
+        ye = YieldEvaluation(st.elastic_strain, st.specific_volume, st.fabric, params, options)
+        return float(ye.value) / pc**2
+
+    # bracket the root: y > 0 (outside) below it, y < 0 (inside) above it
+    low = high = normally_consolidated_preconsolidation(p, params, options)
+    factor = 1.5
+    for _ in range(80):
+        if y(low) > 0:
+            break
+        high, low = low, low / factor
+    else:
+        raise TivModelError(f"no yield point found below p_c = {low:g} kPa at fabric {fabric:g}")
+    for _ in range(80):
+        if y(high) < 0:
+            break
+        low, high = high, high * factor
+    else:
+        raise TivModelError(f"no yield point found above p = {p:g} kPa at fabric {fabric:g}")
+    pc = brentq(y, low, high, xtol=1e-13 * high, rtol=1e-13)
+    return state(pc)
 
 
 def isotropic_run(
-    mean_stress, params: Parameters, options: ModelOptions = DEFAULT_OPTIONS, max_increments=40
+    mean_stress,
+    params: Parameters,
+    options: ModelOptions = DEFAULT_OPTIONS,
+    max_increments=40,
+    start_fabric: float = 0.0,
 ) -> dict[str, np.ndarray]:
-    """Model isotropic compression through the DEM's p_k (kPa; the first is p_A)."""
+    """Model isotropic compression through the DEM's p_k (kPa; the first is p_A), from the
+    state A of :func:`start_state` with fabric ``start_fabric``."""
     p = np.asarray(mean_stress, dtype=float)
-    start = start_state(p[0], params, options)
+    start = start_state(p[0], params, options, start_fabric)
     used = _subsample(p.size, max_increments)
     controls = [Control.triaxial(axial_stress=x, radial_stress=x) for x in p[used]]
     states, _ = _run(start, controls, params, options)
@@ -96,15 +148,17 @@ def k0_run(
     options: ModelOptions = DEFAULT_OPTIONS,
     max_increments: int = 40,
     return_state: bool = False,
+    start_fabric: float = 0.0,
 ):
     """Model K0 loading (ε_r = 0) through the DEM's σ_a,k (kPa) from state A at p_A.
 
     The first entry of ``axial_stress`` is the start point (its value is replaced by p_A).
-    With ``return_state`` also returns the model's last State (C).
+    With ``return_state`` also returns the model's last State (C); ``start_fabric`` is the
+    model's β at A (:func:`start_state`).
     """
     sa = np.asarray(axial_stress, dtype=float).copy()
     sa[0] = float(start_mean_stress)
-    start = start_state(start_mean_stress, params, options)
+    start = start_state(start_mean_stress, params, options, start_fabric)
     used = _subsample(sa.size, max_increments)
     controls = [Control.triaxial(axial_stress=x, radial_strain_increment=0.0) for x in sa[used]]
     states, _ = _run(start, controls, params, options)
@@ -120,13 +174,14 @@ def stress_path_run(
     options: ModelOptions = DEFAULT_OPTIONS,
     start: State | None = None,
     max_increments: int = 40,
+    start_fabric: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Model run following the DEM's (σ_a, σ_r) history (kPa), from ``start`` or from state A
-    (normally consolidated at the first point's p)."""
+    (:func:`start_state` at the first point's p with ``start_fabric``)."""
     sa = np.asarray(axial_stress, dtype=float)
     sr = np.asarray(radial_stress, dtype=float)
     if start is None:
-        start = start_state((sa[0] + 2.0 * sr[0]) / 3.0, params, options)
+        start = start_state((sa[0] + 2.0 * sr[0]) / 3.0, params, options, start_fabric)
     used = _subsample(sa.size, max_increments)
     controls = [
         Control.triaxial(axial_stress=a, radial_stress=r)

@@ -19,7 +19,7 @@ import numpy as np
 import xarray as xr
 
 from tiv_model import drivers
-from tiv_model.integrate import Control, initial_state
+from tiv_model.integrate import Control
 from tiv_model.params import DEFAULT_OPTIONS, TABLE1, ModelOptions, Parameters
 
 from .series import Convention, history_from_model, probes_from_model
@@ -42,11 +42,15 @@ def model_paths(
     increments: int = 10,
     unloading_increments: int = 4,
     sigma_v_max: float | None = None,
+    start_fabric: float = 0.0,
 ) -> dict[str, xr.Dataset]:
     """The three paths of the study run with the model (kPa): isotropic p0 → p_max, K0 from p0
     to σ_v = ``sigma_v_max`` (default 1.3 p_max, i.e. p ≈ p_max at K0 ≈ 0.65), both with
-    geometric stress increments, then constant-p unloading from the end of K0 to q = 0."""
-    start = initial_state(p0, params, options)
+    geometric stress increments, then constant-p unloading from the end of K0 to q = 0.
+    ``start_fabric``: the model's β at A (:func:`bridge.runs.start_state`)."""
+    from .runs import start_state
+
+    start = start_state(p0, params, options, start_fabric)
     iso = drivers.isotropic(
         p_max, state=start, increments=increments, params=params, options=options
     )
@@ -98,6 +102,7 @@ def synthetic_results(
     probe_every: int = 1,
     noise: dict[str, float] | None = None,
     seed: int = 0,
+    start_fabric: float = 0.0,
 ) -> SyntheticPaths:
     """DEM-schema history and probes of model runs (see the module docstring).
 
@@ -109,7 +114,9 @@ def synthetic_results(
     from tiv_model.tensors import TRIAXIAL_DIRECTION_MANDEL
 
     convention = convention or Convention(stress_scale_kpa=1.0)
-    paths = model_paths(params, options, p0, p_max, increments, unloading_increments)
+    paths = model_paths(
+        params, options, p0, p_max, increments, unloading_increments, None, start_fabric
+    )
     attrs = {"title": "synthetic DEM-like results from tiv_model", "source": "bridge.synthetic"}
     history = history_from_model(paths, convention, attrs)
     states = []

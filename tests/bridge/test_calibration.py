@@ -162,3 +162,44 @@ def test_noise_on_fabric_estimates_within_the_standard_errors(synthetic):
         err = result.standard_errors_[sym]
         z = (result.params_.as_symbols()[sym] - TRUTH.as_symbols()[sym]) / err
         assert math.isfinite(err) and abs(z) < 4.0, (sym, z, err)
+
+
+def test_start_state_with_fabric_lies_on_the_yield_surface():
+    from bridge.runs import start_state
+    from tiv_model.dissipation import YieldEvaluation
+    from tiv_model.integrate import initial_state
+    from tiv_model.params import ModelOptions
+
+    for options in (ModelOptions(), ModelOptions(constraint_forces=False)):
+        assert start_state(3.0, TRUTH, options).specific_volume == pytest.approx(
+            initial_state(3.0, TRUTH, options).specific_volume, rel=1e-14
+        )
+        for beta in (0.08, -0.05, 0.2):
+            st = start_state(3.0, TRUTH, options, beta)
+            ye = YieldEvaluation(st.elastic_strain, st.specific_volume, st.fabric, TRUTH, options)
+            assert abs(float(ye.value)) < 1e-9 * st.preconsolidation_pressure**2
+            assert st.fabric_scalar == pytest.approx(beta, rel=1e-12)
+            assert st.mean_stress == pytest.approx(3.0, rel=1e-12)
+            assert st.deviatoric_stress == pytest.approx(0.0, abs=1e-10)
+
+
+def test_fabric_stage_with_the_measured_fabric_at_a():
+    from bridge.synthetic import synthetic_results
+
+    syn = synthetic_results(
+        TRUTH, convention=CONVENTION, increments=5, unloading_increments=2, start_fabric=0.06
+    )
+    series = history_series(syn.history, CONVENTION)
+    assert series["k0"]["fabric"].values[0] == pytest.approx(0.06)
+    options = CalibrationOptions(
+        initial=TRUTH.replace(c=1.3), fixed=("s", "z", "M"), initial_fabric="measured"
+    )
+    result = calibrate(series, {}, options, ("fabric",))
+    assert result.params_.c == pytest.approx(TRUTH.c, rel=1e-6)
+    zero = calibrate(
+        series,
+        {},
+        CalibrationOptions(initial=TRUTH.replace(c=1.3), fixed=("s", "z", "M")),
+        ("fabric",),
+    )
+    assert zero.residual_rms_["k0:fabric"] > 1e3 * result.residual_rms_["k0:fabric"]
