@@ -121,7 +121,8 @@ class CalibrationOptions:
     elastic_paths: probe paths of the elastic stage.
     compressibility_min_pressure: isotropic points with p below it (kPa) are not fitted.
     max_k0_increments: most increments of a model K0 run (more DEM points are interpolated).
-    passes: most repetitions of the coupled stages (stops when parameters change < 1e-10):
+    passes: most repetitions of the coupled stages (stops when no parameter changes by more
+        than ``pass_tolerance``, relative, or absolute below 1e-6):
         compressibility and elastic (cheap) are cycled to a fixed point, then fabric runs once;
         with ``omega_stage="fabric"`` all three are cycled.
     scales: residual scales, keys of ``DEFAULT_SCALES``.
@@ -141,7 +142,8 @@ class CalibrationOptions:
     elastic_paths: tuple[str, ...] = ("isotropic", "unloading")
     compressibility_min_pressure: float = 0.0
     max_k0_increments: int = 12
-    passes: int = 30
+    passes: int = 12
+    pass_tolerance: float = 1e-9
     scales: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_SCALES))
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     penalty: float = 1e3
@@ -233,6 +235,8 @@ class CalibrationResult:
     options: CalibrationOptions
     passes_run: int
     history_: list[dict[str, float]] = field(default_factory=list)
+    #: largest relative parameter change in the last pass over coupled stages
+    last_change: float = 0.0
 
     @property
     def standard_errors_(self) -> dict[str, float]:
@@ -285,6 +289,12 @@ class CalibrationResult:
 
     def warnings(self) -> list[str]:
         out = []
+        if self.last_change >= self.options.pass_tolerance:
+            out.append(
+                f"the coupled stages did not settle within {self.options.passes} passes (last "
+                f"relative parameter change {self.last_change:.2g} ≥ "
+                f"{self.options.pass_tolerance:g})"
+            )
         for st in self.stages_:
             if not st.success:
                 out.append(f"stage {st.name}: optimiser did not report success ({st.message})")
@@ -519,6 +529,14 @@ def _fit_stage(
 ) -> tuple[Parameters, StageFit]:
     t0 = time.perf_counter()
     scales = stage.scales()
+    lo = np.array([options.bound(s)[0] for s in free])
+    hi = np.array([min(options.bound(s)[1], stage.upper_bounds().get(s, np.inf)) for s in free])
+    if np.any(hi <= lo):
+        bad = [s for s, a, b in zip(free, lo, hi, strict=True) if b <= a]
+        raise CalibrationError(f"stage {stage.name}: empty search range for {bad}")
+    # start inside the bounds (e.g. ω below the convexity limit at the measured fabric)
+    x0 = np.clip([params.as_symbols()[s] for s in free], lo, hi)
+    params = params.replace(**dict(zip(free, (float(v) for v in x0), strict=True)))
     try:
         base = stage.pieces(params)
     except TivModelError as exc:
@@ -546,9 +564,6 @@ def _fit_stage(
             stage.fitted,
         )
         return params, fit
-    lo = np.array([options.bound(s)[0] for s in free])
-    hi = np.array([min(options.bound(s)[1], stage.upper_bounds().get(s, np.inf)) for s in free])
-    x0 = np.clip([params.as_symbols()[s] for s in free], lo, hi)
     failures = []
 
     def make(x) -> Parameters:
@@ -658,6 +673,7 @@ def calibrate(
     coupled = options.omega_stage == "fabric" and "fabric" in stages
     groups = [stages] if coupled else [cheap, tuple(s for s in stages if s == "fabric")]
     passes = 0
+    change = 0.0
     for group in groups:
         if not group:
             continue
@@ -670,9 +686,12 @@ def calibrate(
             history.append(params.as_symbols())
             after = np.array(list(params.as_symbols().values()))
             # relative change; parameters at a zero bound (r = 0...) count in absolute terms
-            if np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-6)) < 1e-10:
+            change = float(np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-6)))
+            if rounds == 1 or change < options.pass_tolerance:
                 break
-    return CalibrationResult(params, initial, [fits[s] for s in stages], options, passes, history)
+    return CalibrationResult(
+        params, initial, [fits[s] for s in stages], options, passes, history, change
+    )
 
 
 def _check_identifiable(built: Mapping[str, _Stage], options: CalibrationOptions) -> None:

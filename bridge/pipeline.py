@@ -259,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         help="model fabric at A: isotropic (zero) or the DEM's",
     )
     parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
-    parser.add_argument("--passes", type=int, default=30, help="most cycles of coupled stages")
+    parser.add_argument("--passes", type=int, default=12, help="most cycles of coupled stages")
     parser.add_argument("--max-k0-increments", type=int, default=12)
     parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
     parser.add_argument("--no-figures", action="store_true")
