@@ -27,7 +27,8 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import xarray as xr
@@ -67,6 +68,36 @@ class PipelineOptions:
     figures: bool = True
 
 
+def pipeline_options(options) -> PipelineOptions:
+    """:class:`PipelineOptions` from None, itself, or a mapping of its fields (a nested mapping
+    under ``"calibration"`` becomes :class:`CalibrationOptions`, one under ``"model_options"``
+    in it :class:`tiv_model.params.ModelOptions`, with ``bound_law`` given by name)."""
+    if options is None:
+        return PipelineOptions()
+    if isinstance(options, PipelineOptions):
+        return options
+    if not isinstance(options, Mapping):
+        raise TypeError(f"options must be PipelineOptions or a mapping, got {type(options)}")
+    known = {f.name for f in fields(PipelineOptions)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise TypeError(f"unknown pipeline option(s) {unknown}; allowed: {sorted(known)}")
+    values = dict(options)
+    calibration = values.get("calibration")
+    if isinstance(calibration, Mapping):
+        calibration = dict(calibration)
+        model = calibration.get("model_options")
+        if isinstance(model, Mapping):
+            model = dict(model)
+            if isinstance(model.get("bound_law"), str):
+                model["bound_law"] = BOUND_LAWS[model["bound_law"]]
+            calibration["model_options"] = ModelOptions(**model)
+        if "fixed" in calibration:
+            calibration["fixed"] = tuple(calibration["fixed"])
+        values["calibration"] = CalibrationOptions(**calibration)
+    return PipelineOptions(**values)
+
+
 def _open(path: Path, kind: str) -> xr.Dataset:
     from dem_taichi.io import open_history, open_probes
 
@@ -86,17 +117,18 @@ def _stress_scale(options: PipelineOptions, history: xr.Dataset, path: Path) -> 
 
 
 def calibrate_from_results(
-    history_path, probes_path, out_dir, options: PipelineOptions | None = None
+    history_path, probes_path, out_dir, options: PipelineOptions | Mapping | None = None
 ) -> dict:
     """Calibrate on DEM results, predict, draw and report (see the module docstring).
 
-    ``probes_path`` may be None: then the elastic stage is skipped (k, g, n, r, ω stay at their
-    starting values, as the report says). Returns a JSON-able dict: ``parameters``,
-    ``standard_errors``, ``fitted``, ``out_of_sample``, ``predictions`` (rows of
+    ``options``: :class:`PipelineOptions`, a mapping of its fields (:func:`pipeline_options`)
+    or None (defaults). ``probes_path`` may be None: then the elastic stage is skipped (k, g, n,
+    r, ω stay at their starting values, as the report says). Returns a JSON-able dict:
+    ``parameters``, ``standard_errors``, ``fitted``, ``out_of_sample``, ``predictions`` (rows of
     :func:`bridge.predict.summary`), ``files`` and ``seconds``.
     """
     t0 = time.perf_counter()
-    options = options or PipelineOptions()
+    options = pipeline_options(options)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     history_file = Path(history_path)

@@ -184,22 +184,19 @@ def test_start_state_with_fabric_lies_on_the_yield_surface():
 
 
 def test_fabric_stage_with_the_measured_fabric_at_a():
+    from bridge.runs import k0_run
     from bridge.synthetic import synthetic_results
 
     syn = synthetic_results(
-        TRUTH, convention=CONVENTION, increments=5, unloading_increments=2, start_fabric=0.06
+        TRUTH, convention=CONVENTION, increments=4, unloading_increments=1, start_fabric=0.06
     )
-    series = history_series(syn.history, CONVENTION)
-    assert series["k0"]["fabric"].values[0] == pytest.approx(0.06)
+    k0 = history_series(syn.history, CONVENTION, ("k0",))["k0"]
+    assert k0["fabric"].values[0] == pytest.approx(0.06)
     options = CalibrationOptions(
         initial=TRUTH.replace(c=1.3), fixed=("s", "z", "M"), initial_fabric="measured"
     )
-    result = calibrate(series, {}, options, ("fabric",))
+    result = calibrate({"k0": k0}, {}, options, ("fabric",))
     assert result.params_.c == pytest.approx(TRUTH.c, rel=1e-6)
-    zero = calibrate(
-        series,
-        {},
-        CalibrationOptions(initial=TRUTH.replace(c=1.3), fixed=("s", "z", "M")),
-        ("fabric",),
-    )
-    assert zero.residual_rms_["k0:fabric"] > 1e3 * result.residual_rms_["k0:fabric"]
+    # the isotropic start of the model cannot follow these data, even at the true parameters
+    zero = k0_run(k0["axial_stress"].values, float(k0["mean_stress"][0]), TRUTH)
+    assert np.max(np.abs(zero["fabric"] - k0["fabric"].values)) > 0.01

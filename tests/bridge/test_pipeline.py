@@ -127,3 +127,23 @@ def test_command_line_synthetic_recovers_all_parameters(tmp_path, capsys):
     want = TRUTH.as_symbols()
     for sym, value in saved["parameters"].items():
         assert value == pytest.approx(want[sym], rel=1e-5), sym
+
+
+def test_options_from_a_mapping():
+    from bridge.pipeline import pipeline_options
+
+    opts = pipeline_options(
+        {
+            "stress_scale_kpa": 2.0,
+            "calibration": {
+                "fixed": ["g"],
+                "model_options": {"anisotropy": "B", "bound_law": "tanh"},
+            },
+        }
+    )
+    assert opts.stress_scale_kpa == 2.0
+    assert opts.calibration.fixed == ("g",)
+    assert opts.calibration.model_options.anisotropy == "B"
+    assert opts.calibration.model_options.bound_law_name == "tanh"
+    with pytest.raises(TypeError, match="unknown pipeline option"):
+        pipeline_options({"stress_scale": 1.0})
