@@ -686,8 +686,10 @@ def calibrate(
             history.append(params.as_symbols())
             after = np.array(list(params.as_symbols().values()))
             # relative change; parameters at a zero bound (r = 0...) count in absolute terms
+            if rounds == 1:  # a stage nothing else depends on: no fixed point to reach
+                break
             change = float(np.max(np.abs(after - before) / np.maximum(np.abs(before), 1e-6)))
-            if rounds == 1 or change < options.pass_tolerance:
+            if change < options.pass_tolerance:
                 break
     return CalibrationResult(
         params, initial, [fits[s] for s in stages], options, passes, history, change
