@@ -16,7 +16,8 @@ Usage::
 Writes benchmarks/results/dem_bench.csv (and prints the table, with a profile of the serial
 step: force evaluation, list rebuild, kick/drift). Wall-clock rates depend on the machine's load:
 the table also gives steps per CPU-second of the process (the rate on an idle core for the
-single-threaded serial path; for the parallel path it sums both threads) and the 1-minute load
+single-threaded serial path; for the parallel path it sums both threads), the best rate over
+12 short windows (the rate when the process had the cores to itself) and the 1-minute load
 average during the case.
 """
 
@@ -70,10 +71,18 @@ def time_case(scene, arch, execution, deterministic, state, n_steps):
     wall = time.perf_counter() - t0
     cpu = time.process_time() - c0
     rebuilds = int(sim.get_state()["flags"][layout.F_REBUILDS]) - rebuilds0
+    # best of short windows: the rate when the process had a core to itself (shared machine)
+    window = max(n_steps // 20, 50)
+    best = 0.0
+    for _ in range(12):
+        t1 = time.perf_counter()
+        sim.run(window, control=control, output_every=10**12)
+        best = max(best, window / (time.perf_counter() - t1))
     m = sim.measure()
     return {
         "steps_per_s": n_steps / wall,
         "steps_per_cpu_s": n_steps / cpu,
+        "steps_per_s_best_window": best,
         "load_average": os.getloadavg()[0],
         "disc_steps_per_s": n_steps * sim.n_discs / wall,
         "kernel_share": (sim.timings["kernel"] - kernel0) / wall,
@@ -195,6 +204,7 @@ def main():
                     "execution": execution + (" deterministic" if deterministic else ""),
                     "steps_per_s": round(r["steps_per_s"], 1),
                     "steps_per_cpu_s": round(r["steps_per_cpu_s"], 1),
+                    "steps_per_s_best_window": round(r["steps_per_s_best_window"], 1),
                     "load_average_1min": round(r["load_average"], 2),
                     "disc_steps_per_s": round(r["disc_steps_per_s"]),
                     "rebuild_every_steps": round(r["rebuild_every"], 1),
@@ -225,6 +235,7 @@ def main():
         writer.writerows(cases)
     print(f"\nwritten {out}")
     header = ["n_rods", "pressure", "long_range", "execution", "steps_per_s", "steps_per_cpu_s",
+              "steps_per_s_best_window",
               "load_average_1min", "disc_steps_per_s",
               "rebuild_every_steps", "coordination", "step_us", "force_us_per_step",
               "rebuild_us_each"]  # fmt: skip
