@@ -27,6 +27,9 @@ def smoke_protocol_scene(**protocol):
     settings = dict(
         target_mean_stress=20.0,
         pressure_tolerance=2.0,
+        min_compression_increment=0.0025,
+        transition_pressure_factor=1.0,
+        relax_kinetic_energy_per_rod=1e-8,
         path_increments=2,
         unloading_increments=2,
         radial_stress_ratios="0.4",
