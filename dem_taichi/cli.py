@@ -1,4 +1,8 @@
-"""Command line: ``python -m dem_taichi run SCENE.toml --out DIR [options]``.
+"""Command line: ``python -m dem_taichi run|protocol SCENE --out DIR [options]``.
+
+``protocol`` runs the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial paths) with
+elastic probes, figures and a report; it takes the options of ``python -m dem_taichi.protocol``
+(see :func:`dem_taichi.protocol.main`).
 
 ``run`` loads a scene (a TOML path or a built-in name: smoke, default, paper), builds the gas and
 runs the engine's built-in loading until issue 4's protocol exists: strain-controlled isotropic
@@ -143,12 +147,36 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--resume", action="store_true", help="continue from the latest checkpoint")
     run.add_argument("--deterministic", action="store_true", help="bitwise reproducible (CPU)")
     run.add_argument("--no-progress", dest="progress", action="store_false")
+    sub.add_parser(
+        "protocol",
+        add_help=False,
+        help="the study's virtual experiments with probes, figures and a report "
+        "(python -m dem_taichi protocol --help)",
+    )
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] == "protocol":
+        return _protocol(argv[1:])
     args = parser.parse_args(argv)
     try:
         return _run(args)
     except SceneError as error:
         print(f"scene error: {error}", file=sys.stderr)
         return 2
+
+
+def _protocol(argv: list[str]) -> int:
+    """Delegate to :func:`dem_taichi.protocol.main`; scene errors exit 2, blow-ups exit 3."""
+    from dem_taichi.engine import BlowUpError
+    from dem_taichi.protocol import main as protocol_main
+
+    try:
+        return protocol_main(argv)
+    except SceneError as error:
+        print(f"scene error: {error}", file=sys.stderr)
+        return 2
+    except BlowUpError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover
