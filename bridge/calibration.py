@@ -200,6 +200,27 @@ class CalibrationOptions:
         return tuple(names)
 
 
+def covariance_from_jacobian(jac: np.ndarray) -> np.ndarray:
+    """(JᵀJ)⁻¹ from the SVD of J = U S Vᵀ: V S⁻² Vᵀ, non-negative diagonal by construction.
+
+    Singular values below ``max(S)·max(shape)·eps`` span directions the data do not determine;
+    a parameter with a component along such a direction gets an infinite variance (reported as
+    not determined) instead of the meaningless, possibly negative, value of a plain inverse.
+    """
+    n = jac.shape[1]
+    if jac.size == 0 or not np.all(np.isfinite(jac)):
+        return np.full((n, n), math.inf)
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > sv.max() * max(jac.shape) * np.finfo(float).eps
+    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
+    if sv.size < n or not np.all(keep):
+        null = vt[~keep] if sv.size == n else np.vstack([vt[~keep], np.eye(n)])
+        weak = np.any(np.abs(null) > 1e-8, axis=0)
+        cov[weak, :] = math.inf
+        cov[:, weak] = math.inf
+    return cov
+
+
 @dataclass
 class StageFit:
     """Outcome of one stage: values, standard errors, covariance, fit quality."""
@@ -602,14 +623,8 @@ def _fit_stage(
     jac = np.asarray(sol.jac, dtype=float)
     dof = n_data - len(free)
     s2 = 2.0 * float(sol.cost) / dof if dof > 0 else math.nan
-    try:
-        jtj_inv = np.linalg.inv(jac.T @ jac)
-        if not np.all(np.isfinite(jtj_inv)):
-            raise np.linalg.LinAlgError
-    except np.linalg.LinAlgError:
-        jtj_inv = np.full((len(free), len(free)), math.inf)
-    cov = jtj_inv * s2
-    std = np.sqrt(np.abs(np.diag(cov)))
+    cov = covariance_from_jacobian(jac) * s2
+    std = np.sqrt(np.diag(cov))
     fitted_params = make(sol.x)
     pieces = stage.pieces(fitted_params)
     rms = {k: float(np.sqrt(np.mean(v**2))) for k, v in pieces.items()}

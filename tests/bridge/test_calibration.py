@@ -200,3 +200,21 @@ def test_fabric_stage_with_the_measured_fabric_at_a():
     # the isotropic start of the model cannot follow these data, even at the true parameters
     zero = k0_run(k0["axial_stress"].values, float(k0["mean_stress"][0]), TRUTH)
     assert np.max(np.abs(zero["fabric"] - k0["fabric"].values)) > 0.01
+
+
+def test_covariance_from_jacobian_matches_inverse_and_flags_undetermined():
+    import numpy as np
+
+    from bridge.calibration import covariance_from_jacobian
+
+    rng = np.random.default_rng(3)
+    jac = rng.normal(size=(12, 3))
+    np.testing.assert_allclose(
+        covariance_from_jacobian(jac), np.linalg.inv(jac.T @ jac), rtol=1e-10
+    )
+    # the third parameter only moves the model together with the second: not separable
+    singular = np.column_stack([jac[:, 0], jac[:, 1], 2.0 * jac[:, 1]])
+    cov = covariance_from_jacobian(singular)
+    assert np.isfinite(cov[0, 0]) and cov[0, 0] > 0
+    assert np.isinf(cov[1, 1]) and np.isinf(cov[2, 2])
+    assert np.all(np.diag(cov) >= 0)

@@ -3,6 +3,7 @@
 import importlib.util
 from pathlib import Path
 
+import pytest
 import xarray as xr
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -20,3 +21,26 @@ def test_demo_smoke(tmp_path):
     summary = result["variants"]["A, constraint forces"]
     assert summary["plastic unloading increments"] == 0
     assert "| A, constraint forces |" in result["report"].read_text()
+
+
+def load_demo():
+    spec = importlib.util.spec_from_file_location("demo", ROOT / "scripts" / "demo.py")
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    return demo
+
+
+def test_demo_index_without_dem(tmp_path):
+    assert load_demo().main(["--out", str(tmp_path), "--smoke", "--skip-dem"]) == 0
+    index = (tmp_path / "REPORT.md").read_text()
+    assert "skipped (--skip-dem)" in index and "tiv/tiv_report.md" in index
+
+
+@pytest.mark.slow
+def test_demo_whole_pipeline_on_the_smoke_scene(tmp_path):
+    """DEM protocol -> calibration -> TIV element tests (about 2-3 minutes)."""
+    assert load_demo().main(["--out", str(tmp_path), "--smoke"]) == 0
+    index = (tmp_path / "REPORT.md").read_text()
+    assert "calibration failed" not in index
+    for name in ("dem/history.nc", "dem/probes.nc", "dem/report.md", "bridge/report.md"):
+        assert (tmp_path / name).stat().st_size > 0, name
