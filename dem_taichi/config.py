@@ -9,7 +9,8 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
 ``[scene]``         name, seed, description
 ``[particles]``     n_rods, n_spheres, diameter d, spacing, disc_mass m, initial_area_fraction,
                     initial_speed (rms of the random gas velocity components)
-``[contact]``       k_n, e_n *or* gamma_n, k_t, gamma_t, mu, friction (on/off)
+``[contact]``       k_n, e_n *or* gamma_n, restitution_model (discrete|continuous), k_t, gamma_t,
+                    mu, friction (on/off)
 ``[long_range]``    enabled, pattern (acidic|basic|neutral), f_max_edge, f_max_inner, k_a_edge,
                     k_a_inner
 ``[van_der_waals]`` enabled, f_max, k
@@ -24,6 +25,23 @@ Other packages may add sections (e.g. issue 4's ``[protocol]``) without editing 
 
 Symbols: k_n normal stiffness, γ_n normal damping, e_n normal restitution, t_c contact duration
 (two discs of mass m): t_c = π / sqrt(2 k_n/m − (γ_n/m)²), e_n = exp(−γ_n t_c / m).
+
+Normal damping from a restitution (``[contact] e_n``; a scene giving ``gamma_n`` uses it as is and
+ignores ``restitution_model``):
+
+* The time step is Δt = dt_safety × t_c with t_c the contact duration of the *continuous* model
+  for the target e_n (γ_c = γ_n of the formula above). It depends on neither the model choice nor
+  the γ_n finally used, so Δt is deterministic and the same for both models (no fixed point).
+* ``restitution_model = "continuous"``: γ_n = γ_c. The engine's leapfrog update with the dashpot
+  on the stored half-step velocity then realises a different restitution, O(Δt/t_c): the mean
+  over contact phases is −13 % (e_n = 0.3) to +0.1 % (e_n = 0.9) at dt_safety 0.15.
+* ``restitution_model = "discrete"`` (default): γ_n is the root, at the scene's Δt, of
+  ``restitution.discrete_restitution(γ_n) = e_n``, a host replica of the engine's own discrete
+  two-disc collision averaged over the contact phase (module :mod:`dem_taichi.restitution`).
+  A single collision still scatters around e_n with its contact phase (at dt_safety 0.15:
+  −18 … +48 % for e_n = 0.3, ±5 % for e_n = 0.9; within 1 % only near dt_safety 0.005): that
+  spread is a property of the time step, not of γ_n. Scenes whose e_n the discrete collision
+  cannot reach at their Δt (small e_n with dt_safety ≳ 0.2) fail at load.
 """
 
 from __future__ import annotations
@@ -163,6 +181,16 @@ class Contact(SceneSection):
         default=None, metadata={**_range(0.0, 1.0, lo_open=True), "optional": True}
     )
     gamma_n: float | None = field(default=None, metadata={**_range(0.0), "optional": True})
+    restitution_model: str = field(
+        default="discrete",
+        metadata=_choices(
+            "discrete",
+            "continuous",
+            doc="how γ_n follows from e_n: 'discrete' calibrates γ_n on the engine's own "
+            "leapfrog collision at the scene's Δt (phase-averaged e_n exact); 'continuous' "
+            "uses e_n = exp(−γ_n t_c/m) (realised e_n off by O(Δt/t_c)); unused with gamma_n",
+        ),
+    )
     k_t: float = field(default=2.0e4, metadata=_range(0.0))
     gamma_t: float = field(default=0.0, metadata=_range(0.0))
     mu: float = field(default=0.5, metadata=_range(0.0))
@@ -289,8 +317,8 @@ class Scene:
 
     # Derived quantities -------------------------------------------------------------------
     @property
-    def gamma_n(self) -> float:
-        """Normal damping γ_n (given, or derived from e_n; 0 when neither is given)."""
+    def continuous_gamma_n(self) -> float:
+        """γ_n of the continuous model: given, or e_n = exp(−γ_n t_c/m) inverted; 0 if neither."""
         c, p = self.contact, self.particles
         if c.gamma_n is not None:
             return c.gamma_n
@@ -299,12 +327,23 @@ class Scene:
         return 0.0
 
     @property
+    def gamma_n(self) -> float:
+        """Normal damping γ_n the engine uses (module docstring: ``restitution_model``)."""
+        c, p = self.contact, self.particles
+        if c.gamma_n is None and c.e_n is not None and c.restitution_model == "discrete":
+            from dem_taichi.restitution import gamma_for_discrete_restitution
+
+            return gamma_for_discrete_restitution(c.e_n, c.k_n, p.disc_mass, self.time_step)
+        return self.continuous_gamma_n
+
+    @property
     def contact_duration(self) -> float:
-        return contact_duration(self.contact.k_n, self.gamma_n, self.particles.disc_mass)
+        """t_c of the target collision in the continuous model (uses :attr:`continuous_gamma_n`)."""
+        return contact_duration(self.contact.k_n, self.continuous_gamma_n, self.particles.disc_mass)
 
     @property
     def time_step(self) -> float:
-        """Δt = dt_safety × t_c."""
+        """Δt = dt_safety × t_c (continuous-model t_c: the same for both restitution models)."""
         return self.integration.dt_safety * self.contact_duration
 
     def replace(self, **sections: Any) -> Scene:
@@ -366,6 +405,13 @@ def scene_from_dict(data: dict, source_text: str = "") -> Scene:
 
 def _check_scene(scene: Scene) -> None:
     scene.contact_duration  # noqa: B018 - raises on overdamped γ_n
+    try:
+        scene.gamma_n  # noqa: B018 - solves the discrete restitution model once (cached)
+    except ValueError as exc:
+        raise SceneError(
+            f"[contact] e_n = {scene.contact.e_n} with restitution_model = "
+            f"{scene.contact.restitution_model!r}: {exc}"
+        ) from exc
     p, lr = scene.particles, scene.long_range
     if lr.enabled and lr.pattern == "acidic" and p.n_spheres < 3:
         raise SceneError(

@@ -14,6 +14,7 @@ from dem_taichi.config import (
     scene_from_toml,
     scene_to_toml,
 )
+from dem_taichi.restitution import discrete_restitution, gamma_for_discrete_restitution
 from dem_taichi.scene import generate_gas, lens_area, rod_geometry
 
 
@@ -43,6 +44,14 @@ def test_paper_scene_is_the_study_size():
         ("[particles]\nspacing = 1.5", "spacing = 1.5 > diameter"),
         ("[particles]\nn_spheres = 2\n[long_range]\nenabled = true", "needs n_spheres >= 3"),
         ("[contact]\ngamma_n = 1e6", "overdamped"),
+        (
+            "[contact]\ne_n = 0.5\nrestitution_model = 'exact'",
+            "[contact] restitution_model = 'exact': allowed values are discrete | continuous",
+        ),
+        (
+            "[contact]\ne_n = 0.05\n[integration]\ndt_safety = 0.3",
+            "[contact] e_n = 0.05 with restitution_model = 'discrete': e_n = 0.05 is not reached",
+        ),
         ("[scene\nname='x'", "invalid TOML"),
     ],
 )
@@ -64,6 +73,44 @@ def test_time_step_is_safety_times_contact_duration():
     scene = scene_from_toml("[contact]\nk_n = 4.0e4\ne_n = 0.7\n[integration]\ndt_safety = 0.1")
     gamma = gamma_from_restitution(0.7, 4.0e4, 1.0)
     assert scene.time_step == pytest.approx(0.1 * math.pi / math.sqrt(8.0e4 - gamma**2))
+
+
+def test_discrete_model_solves_the_replica_and_keeps_the_time_step():
+    text = "[contact]\nk_n = 4.0e4\ne_n = 0.3\n[integration]\ndt_safety = 0.15\n"
+    discrete = scene_from_toml(text)
+    continuous = scene_from_toml(
+        text.replace("e_n = 0.3", "e_n = 0.3\nrestitution_model = 'continuous'")
+    )
+    assert discrete.contact.restitution_model == "discrete"  # the default
+    assert continuous.gamma_n == gamma_from_restitution(0.3, 4.0e4, 1.0)
+    assert discrete.time_step == continuous.time_step  # Δt from the continuous-model t_c
+    assert discrete.time_step == pytest.approx(
+        0.15 * contact_duration(4.0e4, continuous.gamma_n, 1.0)
+    )
+    dt = discrete.time_step
+    assert discrete_restitution(discrete.gamma_n, 4.0e4, 1.0, dt) == pytest.approx(0.3, abs=2e-4)
+    assert discrete_restitution(continuous.gamma_n, 4.0e4, 1.0, dt) < 0.3 * 0.9  # the old error
+    assert scene_from_toml(scene_to_toml(discrete)) == discrete
+
+
+def test_discrete_model_tends_to_the_continuous_formula_as_dt_vanishes():
+    k, m = 1.0e5, 1.0
+    for e in (0.3, 0.7):
+        gamma = gamma_from_restitution(e, k, m)
+        t_c = contact_duration(k, gamma, m)
+        # O(Δt/t_c) convergence: 0.3 % at 0.005 t_c, 0.06 % at 0.001 t_c (measured)
+        assert gamma_for_discrete_restitution(e, k, m, 0.001 * t_c) == pytest.approx(
+            gamma, rel=1e-3
+        )
+        assert discrete_restitution(gamma, k, m, 0.001 * t_c) == pytest.approx(e, rel=1e-3)
+        assert discrete_restitution(0.0, k, m, 0.001 * t_c) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_given_gamma_n_ignores_the_restitution_model():
+    for model in ("discrete", "continuous"):
+        scene = scene_from_toml(f"[contact]\ngamma_n = 30.0\nrestitution_model = '{model}'")
+        assert scene.gamma_n == 30.0
+        assert scene.time_step == pytest.approx(0.15 * contact_duration(1.0e5, 30.0, 1.0))
 
 
 def test_rod_geometry_inertia_and_area():
