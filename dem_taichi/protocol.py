@@ -615,7 +615,9 @@ class ProtocolRunner:
     def _rate_factor(self, factor: float, ufr: float) -> float:
         """Halve the loading rate while UFR > ``unbalanced_force_max``; recover ×1.25 below."""
         if math.isfinite(ufr) and ufr > self.config.unbalanced_force_max:
-            return max(0.5 * factor, 1e-3)
+            # floor 0.1: in a packing held by soft repulsion (basic pattern, default scene) UFR
+            # stays above 0.1 while loading at any rate, and a lower floor stalled the servo
+            return max(0.5 * factor, 0.1)
         return min(1.25 * factor, 1.0)
 
     def _output(self, measures: dict, steps: int) -> None:
