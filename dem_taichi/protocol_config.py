@@ -106,9 +106,9 @@ class ProtocolConfig(SceneSection):
       by the inertial-number rate).
     - ``servo_check_steps`` [100]: steps between servo updates.
     - ``servo_max_steps`` [2000000]: most steps to reach one stress target (then an error).
-    - ``unbalanced_force_max`` [0.1]: UFR limit while loading; above it the servo and
-      compression rates are halved, down to 0.1 × (and recover by ×1.25 per check below it). Spikes from
-      sudden rearrangements can exceed it whatever the rate; they are counted in the results.
+    - ``unbalanced_force_max`` [0.1]: UFR limit while loading; above it the servo rate is
+      halved, down to 0.1 × (and recovers by ×1.25 per check below it). Spikes from sudden
+      rearrangements can exceed it whatever the rate; they are counted in the results.
     - ``inertial_number_safety`` [0.5]: the rates are capped at this fraction of the
       inertial-number limit of [control] (the stress can drop within a servo update).
     - ``save_states`` [true]: write a checkpoint ``state_<label>.npz`` at every labelled state.
