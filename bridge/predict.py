@@ -31,7 +31,7 @@ from tiv_model.errors import TivModelError
 from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
 
 from .moduli import moduli_at_states
-from .runs import isotropic_run, k0_run, stress_path_run, unloading_run
+from .runs import RUN_VARIABLES, isotropic_run, k0_run, stress_path_run, unloading_run
 from .series import SERIES_VARIABLES
 
 K0_MODES = ("element", "stress")
@@ -144,20 +144,6 @@ def predict_paths(
         return float(ds["fabric"].values[0]) if initial_fabric == "measured" else 0.0
 
     out: dict[str, xr.Dataset] = {}
-    keep = (
-        "axial_stress",
-        "radial_stress",
-        "mean_stress",
-        "deviatoric_stress",
-        "stress_ratio",
-        "specific_volume",
-        "fabric",
-        "e_oed_v",
-        "e_oed_h",
-        "stiffness_ratio",
-        "preconsolidation_pressure",
-        "plastic",
-    )
     state_c = None
     for path in ("isotropic", "k0", "unloading"):
         if path not in series:
@@ -220,7 +206,7 @@ def predict_paths(
                 driver = "stress control from the model's C along the DEM's (p, q) scaled onto it"
         except TivModelError as exc:
             raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
-        values = {k: run[k] for k in keep}
+        values = {k: run[k] for k in RUN_VARIABLES}
         inputs = _INPUTS[f"k0:{k0_mode}" if path == "k0" else path]
         attrs = {
             "kind": "model run",
