@@ -4,9 +4,9 @@
 elastic probes, figures and a report; it takes the options of ``python -m dem_taichi.protocol``
 (see :func:`dem_taichi.protocol.main`).
 
-``run`` loads a scene (a TOML path or a built-in name: smoke, default, paper), builds the gas and
-runs the engine's built-in loading until issue 4's protocol exists: strain-controlled isotropic
-compression at ``[control] compression_strain_rate`` down to ``target_specific_volume``, then
+``run`` loads a scene (a TOML path or a built-in name: smoke, demo, default, paper), builds the
+gas and runs the engine's built-in loading (``protocol`` runs the study's paths):
+strain-controlled isotropic compression at ``[control] compression_strain_rate`` down to ``target_specific_volume``, then
 ``relax_steps`` steps with the cell fixed. It writes, under ``--out``:
 
 - ``history.nc``: the netCDF history (dem_taichi.io schema), appended every ``[output] every``
@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene (gas -> isotropic compression -> relax)")
-    run.add_argument("scene", help="scene TOML path or built-in name (smoke, default, paper)")
+    run.add_argument("scene", help="scene TOML path or built-in name (smoke, demo, default, paper)")
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--arch", choices=("cpu", "gpu"), default="cpu")
     run.add_argument("--precision", choices=("f64", "f32"), default="f64")

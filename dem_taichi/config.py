@@ -429,7 +429,7 @@ def scene_from_toml(text: str) -> Scene:
 
 
 def builtin_scene_path(name: str) -> Path:
-    """Path of a scene shipped with the package (``smoke``, ``default``, ``paper``)."""
+    """Path of a scene shipped with the package (``smoke``, ``demo``, ``default``, ``paper``)."""
     path = Path(__file__).parent / "scenes" / f"{name}.toml"
     if not path.exists():
         have = sorted(p.stem for p in (Path(__file__).parent / "scenes").glob("*.toml"))
@@ -438,7 +438,7 @@ def builtin_scene_path(name: str) -> Path:
 
 
 def load_scene(path_or_name: str | Path) -> Scene:
-    """Load a scene from a TOML path or a built-in scene name (smoke, default, paper)."""
+    """Load a scene from a TOML path or a built-in scene name (smoke, demo, default, paper)."""
     path = Path(path_or_name)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         path = builtin_scene_path(str(path_or_name))

@@ -927,7 +927,9 @@ def main(argv: list[str] | None = None) -> int:
         description="Run the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial) "
         "with elastic probes; write history, probes, configurations, figures and a report.",
     )
-    parser.add_argument("scene", help="scene TOML file or built-in name (smoke, default, paper)")
+    parser.add_argument(
+        "scene", help="scene TOML file or built-in name (smoke, demo, default, paper)"
+    )
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"))
     parser.add_argument("--precision", default="f64", choices=("f64", "f32"))

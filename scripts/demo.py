@@ -6,7 +6,7 @@ Usage::
 
 Writes, under ``--out``:
 
-- ``dem/``    the DEM protocol on a CPU-sized scene (``default``: 300 rods; ``--smoke``: the
+- ``dem/``    the DEM protocol on a CPU-sized scene (``demo``: 150 rods; ``--smoke``: the
   ``smoke`` scene): history, relaxed states, probes, configurations (netCDF), Figures 1 and 2 of
   the study, ``report.md``;
 - ``bridge/`` the TIV parameters calibrated on those DEM results, predictions, figures, report;
@@ -258,7 +258,7 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--scene", default="default", help="DEM scene (built-in name or TOML path)")
+    parser.add_argument("--scene", default="demo", help="DEM scene (built-in name or TOML path)")
     parser.add_argument(
         "--smoke", action="store_true", help="smoke scene and few increments (about a minute)"
     )
