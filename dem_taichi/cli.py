@@ -6,8 +6,9 @@ elastic probes, figures and a report; it takes the options of ``python -m dem_ta
 
 ``run`` loads a scene (a TOML path or a built-in name: smoke, demo, default, paper), builds the
 gas and runs the engine's built-in loading (``protocol`` runs the study's paths):
-strain-controlled isotropic compression at ``[control] compression_strain_rate`` down to ``target_specific_volume``, then
-``relax_steps`` steps with the cell fixed. It writes, under ``--out``:
+strain-controlled isotropic compression at ``[control] compression_strain_rate`` down to
+``target_specific_volume``, then ``relax_steps`` steps with the cell fixed. It writes, under
+``--out``:
 
 - ``history.nc``: the netCDF history (dem_taichi.io schema), appended every ``[output] every``
   steps and synced, so a killed run leaves a readable file;

@@ -2,7 +2,8 @@
 
 - ``tiv_model`` imports neither taichi nor ``dem_taichi`` nor ``bridge``;
 - ``bridge`` never imports taichi nor the engine (only ``dem_taichi.io`` is allowed);
-- ``import dem_taichi`` does not initialise Taichi: only ``dem_taichi/runtime.py`` calls ``ti.init``.
+- ``import dem_taichi`` does not initialise Taichi: only ``dem_taichi/runtime.py`` calls
+  ``ti.init``.
 """
 
 import ast
@@ -60,7 +61,8 @@ def test_only_runtime_initialises_taichi():
 @pytest.mark.parametrize("package", ["tiv_model", "bridge"])
 def test_import_does_not_load_taichi(package):
     code = f"import sys, {package}, pkgutil, importlib\n"
-    code += f"[importlib.import_module(m.name) for m in pkgutil.walk_packages({package}.__path__, '{package}.')"
+    code += "[importlib.import_module(m.name) for m in "
+    code += f"pkgutil.walk_packages({package}.__path__, '{package}.')"
     code += " if not m.name.endswith('__main__')]\n"
     code += "assert 'taichi' not in sys.modules, 'taichi was imported'\n"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
