@@ -238,8 +238,14 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
     if isinstance(bridge, dict):
         report = bridge.get("files", {}).get("report")
         lines.append(f"Report: `{Path(report).relative_to(out_dir)}`." if report else "")
+        errors = bridge.get("standard_errors") or {}
+        lines += ["", "| parameter | value | standard error |", "|---|---|---|"]
         for name, value in (bridge.get("parameters") or {}).items():
-            lines.append(f"- {name} = {value:.4g}")
+            error = errors.get(name)
+            shown = "fixed" if error is None else f"{error:.3g}"
+            if error is not None and not abs(error) < abs(value):
+                shown += " (not determined by these data)"
+            lines.append(f"| {name} | {value:.4g} | {shown} |")
     else:
         lines.append(str(bridge))
     lines += ["", "## TIV element tests (Table 1)", ""]
