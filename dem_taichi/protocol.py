@@ -685,25 +685,7 @@ class ProtocolRunner:
 
     def isotropic_path(self) -> RelaxedState:
         """A→B: σ_xx = σ_yy = p_k up to ``target_mean_stress`` (state B)."""
-        stage = "A_to_B"
-        t0 = time.perf_counter()
-        measures = self._restore_A()
-        p_a = measures["mean_stress"]
-        self._check_start(p_a)
-        n = self.config.path_increments
-        state = None
-        for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
-            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array([p, p]), measures)
-            self._record(stage).servo_iterations += it
-            label = "B" if k == n else ""
-            state = self._path_state(label, stage, k, (p, p), measures, True, it)
-            self._say(f"[{stage}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
-            self._record(stage).seconds += time.perf_counter() - t0
-            self._maybe_probe(state, last=False)
-            t0 = time.perf_counter()
-        self._record(stage).seconds += time.perf_counter() - t0
-        assert state is not None
-        return state
+        return self._proportional_path("A_to_B", 0.0, "B", "A_to_B")
 
     def k0_path(self) -> RelaxedState:
         """A→C: ε_xx fixed, σ_yy servoed; the last target is p = ``target_mean_stress`` (C)."""
@@ -779,7 +761,11 @@ class ProtocolRunner:
 
     def radial_path(self, eta: float, index: int) -> RelaxedState:
         """From A, p log-spaced to ``target_mean_stress`` at constant η (state R<index>_end)."""
-        stage = "radial"
+        return self._proportional_path("radial", eta, f"R{index}_end", f"radial η={eta:g}")
+
+    def _proportional_path(self, stage: str, eta: float, end_label: str, tag: str) -> RelaxedState:
+        """From A, both axes servoed to σ = p_k (1 ∓ η/2), p_k log-spaced to the target mean
+        stress (η = q/p with q = σ_yy − σ_xx; η = 0 is the isotropic path)."""
         t0 = time.perf_counter()
         measures = self._restore_A()
         p_a = measures["mean_stress"]
@@ -787,12 +773,12 @@ class ProtocolRunner:
         n = self.config.path_increments
         state = None
         for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
-            targets = np.array([p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta)])
-            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures)
+            targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
+            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures)
             self._record(stage).servo_iterations += it
-            label = f"R{index}_end" if k == n else ""
-            state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
-            self._say(f"[{stage} η={eta:g}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            label = end_label if k == n else ""
+            state = self._path_state(label, stage, k, targets, measures, True, it)
+            self._say(f"[{tag}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
             t0 = time.perf_counter()
