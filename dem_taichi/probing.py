@@ -88,6 +88,7 @@ class ProbeResult:
     linear: object | None = None  # dem_taichi.linear_response.LinearResponse
     dynamic_seconds: float = 0.0
     linear_seconds: float = 0.0
+    relax_seconds: float = 0.0
     state_restored_bitwise: bool | None = None
     base_relaxed: bool | None = None
     base_stress_change: float = 0.0
@@ -222,6 +223,7 @@ def probe_state(
     # relax the copy further, to the probes' own threshold: a path state relaxed only to the
     # path's UFR still creeps, and on a marginal state (K0 near C on the default scene) the
     # creep differs between the + and − probes and swamps the response to small amplitudes
+    dynamic = config.runs_dynamic(label)
     t0 = time.perf_counter()
     relaxed, ok, _ = _relax_strict(sim, config, protocol.relax_check_steps)
     result.base_relaxed = ok
@@ -230,12 +232,16 @@ def probe_state(
             abs(relaxed["stress_yy"] - measures["stress_yy"]))
         / max(abs(measures["mean_stress"]), 1e-300)
     )  # fmt: skip
-    result.dynamic_seconds += time.perf_counter() - t0
+    # the strict relaxation is part of the dynamic sweep's cost (the linear response alone
+    # would not need it) only where the sweep runs
+    result.relax_seconds = time.perf_counter() - t0
+    if dynamic:
+        result.dynamic_seconds += result.relax_seconds
     if config.linear:
         t0 = time.perf_counter()
         result.linear = linear_probe(sim, config.sliding_contacts)
         result.linear_seconds = time.perf_counter() - t0
-    if config.dynamic:
+    if dynamic:
         t0 = time.perf_counter()
         for axis in ("y", "x"):
             result.curves[axis] = degradation_curve(sim, axis, config, protocol)

@@ -76,6 +76,9 @@ __all__ = [
     "apply_strain",
     "strain_rate_cap",
     "run_protocol",
+    "run_branch",
+    "branch_names",
+    "BranchOutcome",
     "main",
 ]
 
@@ -162,6 +165,7 @@ class ProtocolResult:
     total_seconds: float = 0.0
     files: dict[str, str] = field(default_factory=dict)
     stress_scale_kpa: float = 1.0
+    workers: int = 1
 
     def summary(self) -> dict:
         """JSON-serialisable summary (also written to ``summary.json``)."""
@@ -192,6 +196,7 @@ class ProtocolResult:
             "probing_dynamic_seconds": self.probing_dynamic_seconds,
             "probing_linear_seconds": self.probing_linear_seconds,
             "total_seconds": self.total_seconds,
+            "workers": self.workers,
             "files": self.files,
         }
 
@@ -681,6 +686,9 @@ class ProtocolRunner:
         if self.state_A is None:
             raise ProtocolError("state A is not known yet: run compress_to_transition first")
         self.sim.set_state(self.state_A)
+        # each path from A keeps its own output cadence (the same whether the paths run one
+        # after the other or in parallel processes)
+        self._since_output = 0
         return self.states["A"].measures
 
     def isotropic_path(self) -> RelaxedState:
@@ -792,6 +800,148 @@ class ProtocolRunner:
 # ---------------------------------------------------------------------------------------------
 
 
+def branch_names(config: ProtocolConfig) -> list[str]:
+    """The branches that start from A, in the order of the serial run: ``"isotropic"`` (A→B),
+    ``"k0"`` (A→C, then C→B when ``run_unloading``), ``"radial <k> <η>"`` (k-th radial path)."""
+    names = []
+    if config.run_isotropic:
+        names.append("isotropic")
+    if config.run_k0:
+        names.append("k0")
+    names += [f"radial {k} {eta!r}" for k, eta in enumerate(config.radial_ratios, 1)]
+    return names
+
+
+def _run_branch_on(runner: ProtocolRunner, branch: str) -> None:
+    """Run one branch from A on ``runner`` (its simulation is set to A by the path itself)."""
+    if branch == "isotropic":
+        runner.isotropic_path()
+    elif branch == "k0":
+        runner.k0_path()
+        if runner.config.run_unloading:
+            runner.unloading_path()
+    elif branch.startswith("radial "):
+        _, index, eta = branch.split()
+        runner.radial_path(float(eta), int(index))
+    else:
+        raise ValueError(f"branch = {branch!r}: allowed isotropic | k0 | radial <k> <eta>")
+
+
+class _RecordList(list):
+    """Stands in for a :class:`HistoryWriter` in a branch process: keeps the records."""
+
+    def append(self, frame: dict) -> int:  # type: ignore[override]
+        super().append(dict(frame))
+        return len(self)
+
+
+@dataclass
+class BranchOutcome:
+    """What one branch run in its own process hands back to :func:`run_protocol`."""
+
+    branch: str
+    history: list[dict]
+    path_states: list[RelaxedState]
+    states: dict[str, RelaxedState]
+    stages: dict[str, StageRecord]
+    configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+    checkpoints: dict[str, str]
+    probes: list
+    probing_seconds: float
+    probing_dynamic_seconds: float
+    probing_linear_seconds: float
+
+
+def run_branch(
+    branch: str,
+    checkpoint_A: str,
+    state_A: RelaxedState,
+    arch: str,
+    precision: str,
+    out_dir: str | None,
+    progress: bool,
+) -> BranchOutcome:
+    """Run one branch from the checkpoint of state A in this process (a worker of
+    :func:`run_protocol`); the scene, with its protocol and probing sections, comes from the
+    checkpoint."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.probing import ProbeRecorder
+
+    sim = Simulation.from_checkpoint(checkpoint_A, arch=arch, precision=precision)
+    config, probing = protocol_settings(sim.scene), probing_settings(sim.scene)
+    history = _RecordList()
+    recorder = ProbeRecorder(probing, config)
+    runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress)
+    runner.out_dir = Path(out_dir) if out_dir is not None else None
+    runner.state_A = sim.get_state()
+    runner.states["A"] = state_A
+    _run_branch_on(runner, branch)
+    return BranchOutcome(
+        branch=branch,
+        history=list(history),
+        path_states=runner.path_states,
+        states={k: v for k, v in runner.states.items() if k != "A"},
+        stages=runner.stages,
+        configurations=runner.configurations,
+        checkpoints=runner.checkpoints,
+        probes=recorder.results,
+        probing_seconds=recorder.seconds,
+        probing_dynamic_seconds=recorder.dynamic_seconds,
+        probing_linear_seconds=recorder.linear_seconds,
+    )
+
+
+def _merge_branch(runner, recorder, history, relaxed, outcome: BranchOutcome) -> None:
+    for record in outcome.history:
+        history.append(record)
+    for state in outcome.path_states:
+        relaxed.append(state.measures)
+    runner.path_states.extend(outcome.path_states)
+    runner.states.update(outcome.states)
+    runner.stages.update(outcome.stages)
+    runner.configurations.update(outcome.configurations)
+    runner.checkpoints.update(outcome.checkpoints)
+    recorder.results.extend(outcome.probes)
+    recorder.seconds += outcome.probing_seconds
+    recorder.dynamic_seconds += outcome.probing_dynamic_seconds
+    recorder.linear_seconds += outcome.probing_linear_seconds
+
+
+def _run_branches_in_processes(
+    runner, recorder, history, relaxed, branches, workers, arch, precision, progress
+) -> None:
+    """Run the branches from A in ``workers`` spawned processes and merge them in order.
+
+    A branch that fails does not lose the others: the finished ones are merged (their records
+    reach history.nc and relaxed_states.nc), then the first failure is raised.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    checkpoint = runner.checkpoints.get("A")
+    if checkpoint is None:
+        checkpoint = str(runner.sim.save_checkpoint(Path(runner.out_dir) / "state_A.npz"))
+    out_dir = str(runner.out_dir) if runner.config.save_states else None
+    runner._say(f"[branches] {', '.join(branches)} from A in {workers} processes")
+    context = multiprocessing.get_context("spawn")  # Taichi's runtime must not be forked
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = [
+            pool.submit(
+                run_branch, b, checkpoint, runner.states["A"], arch, precision, out_dir, progress
+            )
+            for b in branches
+        ]
+        errors = []
+        for branch, future in zip(branches, futures, strict=True):
+            try:
+                _merge_branch(runner, recorder, history, relaxed, future.result())
+            except Exception as exc:  # noqa: BLE001 - keep the other branches, raise below
+                errors.append((branch, exc))
+    if errors:
+        branch, exc = errors[0]
+        raise ProtocolError(f"branch {branch!r} from A failed: {exc}") from exc
+
+
 def _with_pattern(scene: Scene, pattern: str | None) -> Scene:
     if pattern is None or pattern == scene.long_range.pattern:
         return scene
@@ -812,11 +962,18 @@ def run_protocol(
     progress: bool = False,
     pattern: str | None = None,
     command: str = "dem_taichi.protocol.run_protocol",
+    workers: int = 1,
 ) -> ProtocolResult:
     """Run the whole protocol of a scene and write its results to ``out_dir``.
 
     ``scene`` is a :class:`Scene`, a TOML path or a built-in scene name; ``pattern`` overrides the
     scene's charge pattern (acidic | basic | neutral). Returns a :class:`ProtocolResult`.
+
+    ``workers`` > 1 runs the branches that start from A (A→B; A→C with C→B; each radial path)
+    in that many processes at once (see :func:`run_branch`); their results are merged in the
+    order of the serial run, and equal it (the serial engine is deterministic and every branch
+    starts from the same state A). Stage wall times then overlap, so they add up to more than
+    the total.
     """
     import taichi as ti
 
@@ -867,17 +1024,19 @@ def run_protocol(
         sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress
     )
     runner.out_dir = out
+    if workers < 1:
+        raise ValueError(f"workers = {workers}: allowed values are integers >= 1")
+    branches = branch_names(config)
     try:
         history.append(sim.measure() | {"stage": "gas"})
         runner.compress_to_transition()
-        if config.run_isotropic:
-            runner.isotropic_path()
-        if config.run_k0:
-            runner.k0_path()
-            if config.run_unloading:
-                runner.unloading_path()
-        for index, eta in enumerate(config.radial_ratios, 1):
-            runner.radial_path(eta, index)
+        if workers == 1 or len(branches) < 2:
+            for branch in branches:
+                _run_branch_on(runner, branch)
+        else:
+            _run_branches_in_processes(
+                runner, recorder, history, relaxed, branches, workers, arch, precision, progress
+            )
     finally:
         history.close()
         relaxed.close()
@@ -928,6 +1087,7 @@ def run_protocol(
         ds = probes_dataset(recorder.results, recorder.amplitudes, probing, probe_attrs)
         write_dataset(out / "probes.nc", ds)
         result.files["probes"] = str(out / "probes.nc")
+    result.workers = min(workers, len(branches)) if len(branches) > 1 else 1
     result.total_seconds = time.perf_counter() - start
     _write_figures_and_report(result, sim)
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
@@ -963,7 +1123,13 @@ def main(argv: list[str] | None = None) -> int:
         help="charge pattern (overrides the scene's [long_range] pattern)",
     )  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument(
+        "--workers", type=int, default=1,
+        help="processes for the paths from A (A-B, A-C-B', radial) run at once (default 1)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
+    if args.workers < 1:
+        parser.error(f"--workers {args.workers}: allowed values are integers >= 1")
     command = "python -m dem_taichi.protocol " + " ".join(
         argv if argv is not None else sys.argv[1:]
     )
@@ -975,6 +1141,7 @@ def main(argv: list[str] | None = None) -> int:
         progress=not args.quiet,
         pattern=args.pattern,
         command=command,
+        workers=args.workers,
     )
     print(f"protocol done in {result.total_seconds:.1f} s; results in {result.out_dir}")
     for label, state in result.states.items():

@@ -184,6 +184,11 @@ class ProbingConfig(SceneSection):
     - ``every_n_increments`` [2]: also probe every n-th relaxed increment of each path (0 = only
       the labelled states).
     - ``dynamic`` [true]: run the dynamic strain probes (amplitude sweep).
+    - ``dynamic_states`` ["all"]: where the dynamic sweep runs: "all" probed states, or a
+      comma-separated list of probe labels (A, B, C, B', R<k>_end, or <path>_<increment> such
+      as A_to_C_4 for an unlabelled increment); the linear-response probe runs at every probed
+      state. On large scenes (``paper``) the sweep costs ~3000× the linear response, so it is
+      kept at one state as the check of the linear response there.
     - ``amplitude_min`` [1e-9], ``amplitude_max`` [1e-3], ``amplitudes_per_decade`` [1]:
       the log-spaced strain amplitudes of the sweep (model.md: ≈1e-7…1e-3). The sweep starts at
       1e-9 because a state reached by monotonic loading sits on its yield surface: measured on
@@ -208,6 +213,7 @@ class ProbingConfig(SceneSection):
     states: str = "A, B, C, B'"
     every_n_increments: int = field(default=2, metadata=_range(0))
     dynamic: bool = True
+    dynamic_states: str = "all"
     amplitude_min: float = field(default=1e-9, metadata=_range(0.0, 0.1, lo_open=True))
     amplitude_max: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
     amplitudes_per_decade: int = field(default=1, metadata=_range(1, 20))
@@ -229,6 +235,14 @@ class ProbingConfig(SceneSection):
     def state_labels(self) -> tuple[str, ...]:
         """Labels of ``states``, parsed (comma-separated, blanks stripped)."""
         return tuple(s.strip() for s in self.states.split(",") if s.strip())
+
+    def runs_dynamic(self, label: str) -> bool:
+        """Whether the dynamic sweep runs at the probe labelled ``label``."""
+        if not self.dynamic:
+            return False
+        if self.dynamic_states.strip() == "all":
+            return True
+        return label in {s.strip() for s in self.dynamic_states.split(",") if s.strip()}
 
     @property
     def amplitudes(self) -> tuple[float, ...]:

@@ -154,6 +154,16 @@ def write_report(result, path: Path | None = None) -> Path:
         "",
         "## Stages",
         "",
+        *(
+            [
+                f"The paths from A ran in {result.workers} processes at once (--workers "
+                f"{result.workers}): their stage times overlap, so the shares add up to more "
+                "than 100 %.",
+                "",
+            ]
+            if getattr(result, "workers", 1) > 1
+            else []
+        ),
         "| stage | wall time (s) | share | steps | relaxed states | servo corrections | max I "
         "| max UFR loading | max UFR relaxed |",
         "|---|---|---|---|---|---|---|---|---|",

@@ -178,3 +178,69 @@ def test_cli_rejects_a_bad_pattern(capsys):
     with pytest.raises(SystemExit):
         main(["smoke", "--out", "x", "--pattern", "salty"])
     assert "salty" in capsys.readouterr().err
+
+
+def test_branches_in_two_processes_equal_the_serial_run(run, tmp_path):
+    """workers=2 runs A→B, A→C→B' and the radial path from A's checkpoint in spawned processes;
+    the serial engine is deterministic, so every state, history record and probe is the same."""
+    from dem_taichi.protocol import run_protocol
+
+    par = run_protocol(smoke_protocol_scene(), tmp_path / "par", workers=2)
+    assert par.workers == 2
+    assert list(par.states) == list(run.states)
+    for label, state in run.states.items():
+        for key in ("step", "mean_stress", "deviatoric_stress", "specific_volume",
+                    "fabric_deviator", "strain_xx", "strain_yy"):  # fmt: skip
+            assert par.states[label].measures[key] == state.measures[key], (label, key)
+    assert [s.stage for s in par.path_states] == [s.stage for s in run.path_states]
+    serial_hist = open_history(run.files["history"])
+    par_hist = open_history(par.files["history"])
+    assert par_hist.sizes["time"] == serial_hist.sizes["time"]
+    np.testing.assert_array_equal(par_hist["mean_stress"].values, serial_hist["mean_stress"].values)
+    np.testing.assert_array_equal(par_hist["stage"].values, serial_hist["stage"].values)
+    serial_probes, par_probes = open_probes(run.files["probes"]), open_probes(par.files["probes"])
+    for name in ("e_oed_v_linear", "e_oed_h_linear", "e_oed_v_dynamic", "e_oed_h_dynamic"):
+        np.testing.assert_array_equal(par_probes[name].values, serial_probes[name].values)
+    assert set(par.stages) == set(run.stages)
+    assert "state_C" in par.files and "state_B'" in par.files
+
+
+def test_dynamic_sweep_only_at_the_chosen_states(run):
+    """[probing] dynamic_states limits the sweep; the linear response runs at every probe."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.probing import ProbeRecorder
+    from dem_taichi.protocol import RelaxedState
+    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+
+    probing = ProbingConfig(dynamic_states="C, A_to_C_2", amplitude_min=1e-8, amplitude_max=1e-8)
+    assert probing.runs_dynamic("C") and probing.runs_dynamic("A_to_C_2")
+    assert not probing.runs_dynamic("B")
+    assert ProbingConfig().runs_dynamic("A_to_C_2")
+    assert not ProbingConfig(dynamic=False).runs_dynamic("C")
+
+    class Runner:
+        def __init__(self, sim):
+            self.sim = sim
+
+        def _say(self, text):
+            pass
+
+    sim = Simulation.from_checkpoint(run.files["state_B"])
+    recorder = ProbeRecorder(probing, ProtocolConfig())
+    state = RelaxedState("B", "A_to_B", 2, (math.nan, math.nan), sim.measure(), True)
+    recorder(Runner(sim), state)
+    (b,) = recorder.results
+    assert not b.curves and math.isnan(b.modulus("e_oed_v", "dynamic"))
+    assert b.dynamic_seconds == 0.0 and recorder.dynamic_seconds == 0.0
+    serial = run.probes[0]  # B of the module run, with the sweep
+    assert b.modulus("e_oed_v", "linear") == pytest.approx(
+        serial.modulus("e_oed_v", "linear"), rel=1e-6
+    )
+
+
+def test_cli_rejects_zero_workers(capsys):
+    from dem_taichi.protocol import main
+
+    with pytest.raises(SystemExit):
+        main(["smoke", "--out", "x", "--workers", "0"])
+    assert "--workers 0" in capsys.readouterr().err
