@@ -148,13 +148,14 @@ def main(argv: list[str] | None = None) -> int:
         label = path.stem[6:].replace("_prime", "'")
         rows.append(_row(label, network_anisotropy(Simulation.from_checkpoint(path).snapshot())))
     head = ("state", "rod β dev", "contact n dev", "force-weighted n dev", "LR n dev",
-            "contacts", "LR pairs", "affine Eh/Ev contact", "affine Eh/Ev all", "contact share Ev")  # fmt: skip
+            "contacts", "LR pairs", "affine Eh/Ev contact", "affine Eh/Ev all",
+            "contact share Ev")  # fmt: skip
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for r in rows:
         print(
-            f"| {r['state']} | {r['rod_fabric_deviator']:+.3f} | {r['contact_normal_deviator']:+.3f}"
-            f" | {r['contact_force_weighted_deviator']:+.3f} | "
+            f"| {r['state']} | {r['rod_fabric_deviator']:+.3f} | "
+            f"{r['contact_normal_deviator']:+.3f} | {r['contact_force_weighted_deviator']:+.3f} | "
             f"{r['long_range_normal_deviator']:+.3f} | {r['n_contacts']} | {r['n_long_range']} | "
             f"{r['affine_ratio_contact']:.3f} | {r['affine_ratio']:.3f} | "
             f"{r['contact_share_v']:.3f} |"
