@@ -83,16 +83,6 @@ __all__ = [
 ]
 
 
-#: the servo counts the time since every |t − Wσ| first came within SERVO_NEAR_TARGET |t|; when
-#: it has not settled after SERVO_STALL_TIMES servo times T and the sample is still moving
-#: (UFR ≥ 100 × ``relax_unbalanced_force``: hunting), it doubles T (halves the gain), at most
-#: up to SERVO_TIME_MAX_FACTOR × ``servo_time``. A healthy exponential approach from 5 % to the
-#: check threshold (0.05 %) takes ln 100 ≈ 4.6 T.
-SERVO_NEAR_TARGET = 0.05
-SERVO_STALL_TIMES = 10.0
-SERVO_TIME_MAX_FACTOR = 64.0
-
-
 class ProtocolError(RuntimeError):
     """A stage could not reach its goal; the message says which and what to change."""
 
@@ -563,9 +553,10 @@ class ProtocolRunner:
         while UFR > ``unbalanced_force_max``). When every error is below half the tolerance and
         UFR below 100 × the relaxation threshold, the cell is fixed and the sample relaxed; the
         target is reached when the relaxed state is within ``stress_tolerance``, else the servo
-        goes on. Hunting: when the servo has not settled SERVO_STALL_TIMES × T after first
-        coming within SERVO_NEAR_TARGET of the targets and UFR is still ≥ 100 × the relaxation
-        threshold, T is doubled for the rest of the stage (``servo_times``): in soft repulsive
+        goes on. Hunting: when the servo has not settled ``servo_stall_times`` × T after first
+        coming within ``servo_near_target`` of the targets and UFR is still ≥ 100 × the
+        relaxation threshold, T is doubled for the rest of the stage (``servo_times``), at most
+        to ``servo_time_max_factor`` × ``servo_time``: in soft repulsive
         packings (basic pattern, 300 rods) the loop at T = 2 is faster than the slow soft network
         (cell transit time L/c ≈ 1.5–2.5) and the stress hunts ±10 % around the target with
         UFR ≈ 0.05–0.1 forever; a slow but static approach (creep) does not change T.
@@ -618,13 +609,13 @@ class ProtocolRunner:
                 if ok and np.all(np.abs(residual) <= c.stress_tolerance * scale):
                     return measures, checks
                 continue
-            if near_steps > 0 or np.all(np.abs(residual) <= SERVO_NEAR_TARGET * scale):
+            if near_steps > 0 or np.all(np.abs(residual) <= c.servo_near_target * scale):
                 near_steps += c.servo_check_steps
-                stalled = near_steps * sim.scene.time_step > SERVO_STALL_TIMES * servo_time
+                stalled = near_steps * sim.scene.time_step > c.servo_stall_times * servo_time
                 hunting = not (math.isfinite(ufr) and ufr < 100.0 * c.relax_unbalanced_force)
                 if stalled and not hunting:
                     near_steps = 0  # slow but static (creep): the gain is not the problem
-                elif stalled and servo_time < SERVO_TIME_MAX_FACTOR * c.servo_time:
+                elif stalled and servo_time < c.servo_time_max_factor * c.servo_time:
                     # hunting around the target without settling: the loop is faster than the
                     # network (soft repulsive packings): halve the gain for the rest of the stage
                     servo_time *= 2.0

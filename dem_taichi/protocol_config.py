@@ -104,6 +104,13 @@ class ProtocolConfig(SceneSection):
     - ``servo_time`` [2.0]: time constant T (time units) of the stress servo,
       ε̇ = C⁻¹ (σ_target − σ) / T, C the linear-response stiffness of the relaxed network (capped
       by the inertial-number rate).
+    - ``servo_near_target`` [0.05], ``servo_stall_times`` [10.0], ``servo_time_max_factor``
+      [64.0]: hunting detection. The servo counts the time since every |t − Wσ| first came
+      within ``servo_near_target`` |t|; when it has not settled after ``servo_stall_times``
+      servo times T and the sample still moves (UFR ≥ 100 × ``relax_unbalanced_force``), it
+      doubles T (halves the gain) for the rest of the stage, at most up to
+      ``servo_time_max_factor`` × ``servo_time``. A healthy exponential approach from 5 % to
+      the check threshold (0.05 %) takes ln 100 ≈ 4.6 T, hence 10 T.
     - ``servo_check_steps`` [100]: steps between servo updates.
     - ``servo_max_steps`` [2000000]: most steps to reach one stress target (then an error).
     - ``unbalanced_force_max`` [0.1]: UFR limit while loading; above it the servo rate is
@@ -140,6 +147,9 @@ class ProtocolConfig(SceneSection):
     relax_max_steps: int = field(default=200_000, metadata=_range(1))
     stress_tolerance: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
     servo_time: float = field(default=2.0, metadata=_range(0.0, None, lo_open=True))
+    servo_near_target: float = field(default=0.05, metadata=_range(0.0, 1.0, lo_open=True))
+    servo_stall_times: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+    servo_time_max_factor: float = field(default=64.0, metadata=_range(1.0))
     servo_check_steps: int = field(default=100, metadata=_range(1))
     servo_max_steps: int = field(default=2_000_000, metadata=_range(1))
     load_steps_min: int = field(default=200, metadata=_range(1))

@@ -15,7 +15,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from dem_taichi import protocol
 from dem_taichi.protocol import ProtocolError, ProtocolRunner
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 
@@ -65,9 +64,9 @@ class DelayedPlant:
         return self.measure()
 
 
-def servo_on_delayed_plant(max_steps: int):
+def servo_on_delayed_plant(max_steps: int, **settings):
     plant = DelayedPlant(10.0)
-    config = ProtocolConfig(servo_time=2.0, servo_max_steps=max_steps)
+    config = ProtocolConfig(servo_time=2.0, servo_max_steps=max_steps, **settings)
     runner = ProtocolRunner(plant, config, ProbingConfig(enabled=False))
     targets = np.array([15.0, 15.0])
     measures, checks = runner.servo("A_to_B", (0, 1), np.eye(2), targets, plant.measure())
@@ -89,9 +88,11 @@ def test_servo_settles_on_a_plant_slower_than_its_loop():
     assert slowed <= 4 * DELAY_STEPS * TIME_STEP
 
 
-def test_fixed_gain_servo_hunts_on_that_plant(monkeypatch):
-    """The model is a real test: with the slowing disabled (the servo before the fix) the loop
-    hunts around the targets and never reaches a relaxed state within the same budget."""
-    monkeypatch.setattr(protocol, "SERVO_STALL_TIMES", math.inf)
+def test_fixed_gain_servo_hunts_on_that_plant():
+    """The model is a real test: with the slowing disabled (the servo before the fix; also
+    ``servo_time_max_factor = 1``) the loop hunts around the targets and never reaches a relaxed
+    state within the same budget."""
     with pytest.raises(ProtocolError, match="not reached"):
-        servo_on_delayed_plant(400_000)
+        servo_on_delayed_plant(400_000, servo_stall_times=1e12)
+    with pytest.raises(ProtocolError, match="not reached"):
+        servo_on_delayed_plant(400_000, servo_time_max_factor=1.0)
