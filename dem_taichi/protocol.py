@@ -75,6 +75,7 @@ __all__ = [
     "relax",
     "apply_strain",
     "strain_rate_cap",
+    "SecantStiffness",
     "run_protocol",
     "run_branch",
     "branch_names",
@@ -278,6 +279,63 @@ def apply_strain(
 # ---------------------------------------------------------------------------------------------
 # The protocol
 # ---------------------------------------------------------------------------------------------
+
+
+def _controlled(weights: np.ndarray, measures: dict) -> np.ndarray:
+    return weights @ np.array([measures["stress_xx"], measures["stress_yy"]])
+
+
+def _strains(measures: dict, axes: list[int]) -> np.ndarray:
+    strain = np.array([measures["strain_xx"], measures["strain_yy"]], dtype=float)
+    return strain[axes]
+
+
+class SecantStiffness:
+    """Secant/elastic stiffness ratio s of the servoed response since loading began in the
+    current direction (``[protocol] servo_stiffness = "secant"``).
+
+    The servo's rate law is ε̇ = (s J)⁻¹ (t − Wσ)/T with J = W C_a the elastic (linear-response)
+    stiffness. On a plastic path the material's tangent stiffness is far below J (K0 on the
+    paper scene near A: ~1/20), so with s = 1 the stress approaches its target with the time
+    constant T J/J_tangent instead of T, and the loading runs an order of magnitude below the
+    inertial-number cap. s is the projection of the measured change of the controlled stresses
+    on the elastic prediction, s = (Δy·J Δε)/|J Δε|², both Δ since the start, used once
+    |J Δε| exceeds ``min_change`` × |t| (below that, waves and noise dominate), clipped to
+    [``s_min``, 1]. A residual that changes sign (overshoot: the response reverses, and a
+    reversal is elastic) restarts the estimate at s = 1.
+    """
+
+    def __init__(self, jacobian: np.ndarray, s_min: float, min_change: float) -> None:
+        self.jacobian = np.atleast_2d(np.asarray(jacobian, dtype=float))
+        self.s_min = float(s_min)
+        self.min_change = float(min_change)
+        self.ratio = 1.0
+        self._y0: np.ndarray | None = None
+        self._e0: np.ndarray | None = None
+        self._sign: np.ndarray | None = None
+
+    def restart(self, controlled: np.ndarray, strains: np.ndarray) -> None:
+        """Start a new estimate from the current controlled stresses and strains (s = 1)."""
+        self.ratio = 1.0
+        self._y0, self._e0, self._sign = controlled.copy(), strains.copy(), None
+
+    def update(
+        self, controlled: np.ndarray, strains: np.ndarray, residual: np.ndarray, scale: np.ndarray
+    ) -> float:
+        """Take the state after a servo update; return the new s."""
+        sign = np.sign(residual)
+        if self._sign is None:
+            self._sign = sign
+        elif np.any((sign != self._sign) & (sign != 0) & (self._sign != 0)):
+            self.restart(controlled, strains)
+            self._sign = sign
+            return self.ratio
+        predicted = self.jacobian @ (strains - self._e0)
+        if np.linalg.norm(predicted) > self.min_change * np.linalg.norm(scale):
+            measured = controlled - self._y0
+            s = float(measured @ predicted / (predicted @ predicted))
+            self.ratio = min(max(s, self.s_min), 1.0)
+        return self.ratio
 
 
 class ProtocolRunner:
@@ -560,6 +618,8 @@ class ProtocolRunner:
         packings (basic pattern, 300 rods) the loop at T = 2 is faster than the slow soft network
         (cell transit time L/c ≈ 1.5–2.5) and the stress hunts ±10 % around the target with
         UFR ≈ 0.05–0.1 forever; a slow but static approach (creep) does not change T.
+        With ``servo_stiffness = "secant"`` the rate law uses s C_a, s the secant/elastic ratio
+        measured since loading began in the current direction (:class:`SecantStiffness`).
         (A quasi-Newton correction between relaxed states was tried and dropped: on
         the smoke scene near A each correction triggers rearrangements and the relaxed stress
         jumps by ±2 %, so it alternated around the target without converging.) Returns the
@@ -578,9 +638,14 @@ class ProtocolRunner:
             except np.linalg.LinAlgError:
                 return np.diag(1.0 / np.abs(np.diag(jac)))
 
-        inverse_jacobian = inverse(self._initial_jacobian())
+        elastic = self._initial_jacobian()
+        inverse_jacobian = inverse(elastic)
         servo_time = self.servo_times.get(stage, c.servo_time)
         gain = inverse_jacobian / servo_time
+        secant = SecantStiffness(
+            weights @ elastic[:, control_axes], c.servo_softening_min, c.servo_near_target
+        )
+        secant.restart(_controlled(weights, measures), _strains(measures, control_axes))
         steps = 0
         checks = 0
         record = self._record(stage)
@@ -620,7 +685,7 @@ class ProtocolRunner:
                     # network (soft repulsive packings): halve the gain for the rest of the stage
                     servo_time *= 2.0
                     self.servo_times[stage] = servo_time
-                    gain = inverse_jacobian / servo_time
+                    gain = inverse_jacobian / (servo_time * secant.ratio)
                     near_steps = 0
                     self._say(
                         f"    [{stage}] servo not settling near the target "
@@ -636,6 +701,12 @@ class ProtocolRunner:
             measures = sim.run(
                 c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
             )
+            if c.servo_stiffness == "secant":
+                secant.update(
+                    _controlled(weights, measures), _strains(measures, control_axes),
+                    targets - _controlled(weights, measures), scale,
+                )  # fmt: skip
+                gain = inverse_jacobian / (servo_time * secant.ratio)
             steps += c.servo_check_steps
             record.steps += c.servo_check_steps
             record.note(measures, False, c.unbalanced_force_max)

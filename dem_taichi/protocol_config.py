@@ -111,6 +111,15 @@ class ProtocolConfig(SceneSection):
       doubles T (halves the gain) for the rest of the stage, at most up to
       ``servo_time_max_factor`` × ``servo_time``. A healthy exponential approach from 5 % to
       the check threshold (0.05 %) takes ln 100 ≈ 4.6 T, hence 10 T.
+    - ``servo_stiffness`` ["elastic"]: the stiffness in the servo's rate law. "elastic": the
+      linear-response stiffness C of the relaxed network at the start of each target (on a
+      plastic path the approach is then slower than T by C/C_tangent). "secant": s C, s the
+      measured secant/elastic ratio since loading began in the current direction, in
+      [``servo_softening_min``, 1], reset to 1 when the residual changes sign
+      (:class:`dem_taichi.protocol.SecantStiffness`); the loading then runs near the
+      inertial-number cap. The paper scene uses "secant"; the default stays "elastic" (the
+      validation runs of the default scene were made with it).
+    - ``servo_softening_min`` [0.01]: smallest s of the secant servo.
     - ``servo_check_steps`` [100]: steps between servo updates.
     - ``servo_max_steps`` [2000000]: most steps to reach one stress target (then an error).
     - ``unbalanced_force_max`` [0.1]: UFR limit while loading; above it the servo rate is
@@ -150,6 +159,8 @@ class ProtocolConfig(SceneSection):
     servo_near_target: float = field(default=0.05, metadata=_range(0.0, 1.0, lo_open=True))
     servo_stall_times: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
     servo_time_max_factor: float = field(default=64.0, metadata=_range(1.0))
+    servo_stiffness: str = field(default="elastic", metadata=_choices("elastic", "secant"))
+    servo_softening_min: float = field(default=0.01, metadata=_range(0.0, 1.0, lo_open=True))
     servo_check_steps: int = field(default=100, metadata=_range(1))
     servo_max_steps: int = field(default=2_000_000, metadata=_range(1))
     load_steps_min: int = field(default=200, metadata=_range(1))
