@@ -89,26 +89,40 @@ def test_protocol_reaches_every_state_with_targets_held(pattern, root):
     assert run.summary["transition"]["detector_agrees"]
 
 
-# Where the DEM disagrees with the study (measured 2026-11-22 on `default`, see the closing
-# report): the checks stay, marked as expected failures with the numbers, so that a change
-# of the model that reproduces the study shows up as XPASS.
-_ISO_XFAIL = pytest.mark.xfail(
-    strict=False,
-    reason="measured: E_h/E_v = 1.06-1.21 (acidic), 0.75-0.80 (neutral) along A->B; the rod "
-    "fabric at A is already 1.5-2 sigma anisotropic (-0.073 acidic, +0.056 neutral) and the "
-    "moduli follow it",
-)
-_K0_XFAIL = pytest.mark.xfail(
-    strict=False,
-    reason="measured: along K0 E_h/E_v = 1.03 -> 0.89 -> 1.00 -> 0.96 (acidic, linear "
-    "response) although rods lie down (fabric -0.073 -> -0.218); stress-induced contact "
-    "anisotropy along sigma_yy offsets the particle-orientation effect; neutral rods are "
-    "jammed at A and do not rotate (fabric +0.056 -> +0.054)",
-)
+# Where the DEM disagrees with the study (measured 2026-11-30 on `default` at commits 1fbc8c1
+# (basic) and c3a67dc (acidic, neutral), same physics and servo; see
+# benchmarks/results/protocol_validation_summary.md): the checks stay, marked as expected
+# failures with the numbers, so that a change of the model that reproduces the study shows up as
+# XPASS. Interaction fabrics from `python -m dem_taichi.anisotropy` (contact share of the affine
+# stiffness = 1.000 everywhere: k_n = 1e5 against k_a = 20).
+_ISO_XFAIL = {
+    "acidic": "measured: the 300-rod sample leaves the gas with rod fabric -0.093 at A (2.3 "
+    "sigma) and isotropic compression raises it to -0.155 at B; E_h/E_v = 1.66 at A, 1.02-1.38 "
+    "along A->B. At 1520 rods (paper scene) the same path stays within 0.009 and E_h/E_v = "
+    "0.93-1.06",
+    "basic": "measured: the fabric stays isotropic (max 0.035 < noise 0.041) but A is a marginal "
+    "network (Z_m = 3.015) with E_h/E_v = 2.55 (linear response; 1.84 dynamic); 0.96-1.18 beyond",
+}
+_K0_XFAIL = {
+    "basic": "measured: dense at A (v = 1.443), the rods barely rotate (-0.024 -> -0.059, "
+    "< 3 noise); contact normals turn towards sigma_yy (+0.082, force-weighted +0.197 at C) "
+    "and E_h/E_v = 0.78 -> 0.72 -> 0.80 -> 0.78 (affine contact estimate 0.83 at C)",
+    "neutral": "measured: frictional rods jam at A (v = 1.461) and do not rotate (+0.048 -> "
+    "+0.043); contact forces turn towards sigma_yy (force-weighted +0.141 at C) and E_h/E_v = "
+    "0.94 -> 0.87 -> 0.82 -> 0.80",
+}
 
 
-@pytest.mark.parametrize("pattern", PATTERNS)
-@_ISO_XFAIL
+def _with_xfail(reasons: dict[str, str]) -> list:
+    return [
+        pytest.param(p, marks=pytest.mark.xfail(strict=False, reason=reasons[p]))
+        if p in reasons
+        else p
+        for p in PATTERNS
+    ]
+
+
+@pytest.mark.parametrize("pattern", _with_xfail(_ISO_XFAIL))
 def test_isotropic_path_keeps_fabric_isotropic_and_moduli_equal(pattern, root):
     run = get_run(pattern, root)
     noise = fabric_sampling_noise(run.n_rods)
@@ -119,8 +133,7 @@ def test_isotropic_path_keeps_fabric_isotropic_and_moduli_equal(pattern, root):
     assert np.all(np.abs(ratio - 1.0) <= 0.15), ratio
 
 
-@pytest.mark.parametrize("pattern", PATTERNS)
-@_K0_XFAIL
+@pytest.mark.parametrize("pattern", _with_xfail(_K0_XFAIL))
 def test_k0_rods_lie_down_and_horizontal_stiffness_grows(pattern, root):
     run = get_run(pattern, root)
     noise = fabric_sampling_noise(run.n_rods)
@@ -143,8 +156,8 @@ def test_k0_rods_lie_down_and_horizontal_stiffness_grows(pattern, root):
             "neutral",
             marks=pytest.mark.xfail(
                 strict=False,
-                reason="measured: frictional rods without long-range forces jam at v = 1.487 "
-                "and only compress elastically beyond A (lambda* = 0.001, R2 = 0.80)",
+                reason="measured: frictional rods without long-range forces jam at v = 1.461 "
+                "and only compress elastically beyond A (lambda* = 0.0007, R2 = 0.77)",
             ),
         ),
     ],
