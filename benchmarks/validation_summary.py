@@ -4,7 +4,8 @@ Usage::
 
     python benchmarks/validation_summary.py RUN_DIR [RUN_DIR ...] [--out FILE.md]
 
-Each RUN_DIR is the output of ``python -m dem_taichi protocol ...``; when it also holds
+Each RUN_DIR is the output of ``python -m dem_taichi protocol ...`` (its folder name labels
+the row); when it also holds
 ``anisotropy.json`` (``python -m dem_taichi.anisotropy RUN_DIR``) the interaction fabrics at C
 are listed. Prints a markdown table per finding and writes it to ``--out``
 (default ``benchmarks/results/protocol_validation_summary.md``).
@@ -52,7 +53,12 @@ def _run_row(folder: Path) -> dict:
     on_k0 = path == "A_to_C"
     order = np.argsort(p[on_k0])
     row = {
-        "run": f"{summary['scene']} {summary['pattern']}",
+        "run": folder.name,
+        "max_i": max(
+            st["max_inertial_number"]
+            for name, st in summary["stages"].items()
+            if name != "isotropic_to_A"
+        ),
         "n_rods": n,
         "noise": fabric_sampling_noise(n),
         "iso_fabric_max": float(
@@ -89,16 +95,17 @@ def table(rows: list[dict]) -> str:
     lines = [
         "# The study's findings on the DEM runs (linear-response moduli)",
         "",
-        "| run | wall time | p_A | v_A | v_B | v_C | fabric A → C | noise sqrt(0.5/N) | "
-        "max abs fabric A→B | E_h/E_v on A→B (min–max) | E_h/E_v along K0 (p ↑) | "
-        "λ* (R²) | K0 at C |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| run | wall time | max I on the paths | p_A | v_A | v_B | v_C | fabric A → C | "
+        "noise sqrt(0.5/N) | max abs fabric A→B | E_h/E_v on A→B (min–max) | "
+        "E_h/E_v along K0 (p ↑) | λ* (R²) | K0 at C |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['run']} | {r['seconds'] / 60:.1f} min"
             f"{' (' + str(r['workers']) + ' workers)' if r['workers'] > 1 else ''} | "
-            f"{_f(r['p_A'])} | {r['v_A']:.3f} | {r['v_B']:.3f} | {r['v_C']:.3f} | "
+            f"{r['max_i']:.1e} | {_f(r['p_A'])} | {r['v_A']:.3f} | {r['v_B']:.3f} | "
+            f"{r['v_C']:.3f} | "
             f"{r['fabric_A']:+.3f} → {r['fabric_C']:+.3f} | {r['noise']:.3f} | "
             f"{r['iso_fabric_max']:.3f} | {min(r['iso_ratio']):.2f}–{max(r['iso_ratio']):.2f} | "
             f"{' → '.join(f'{x:.2f}' for x in r['k0_ratio'])} | "
