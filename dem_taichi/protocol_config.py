@@ -115,7 +115,8 @@ class ProtocolConfig(SceneSection):
       linear-response stiffness C of the relaxed network at the start of each target (on a
       plastic path the approach is then slower than T by C/C_tangent). "secant": s C, s the
       measured secant/elastic ratio since loading began in the current direction, in
-      [``servo_softening_min``, 1], reset to 1 when the residual changes sign
+      [``servo_softening_min``, 1], estimated once the elastic prediction of the stress change
+      exceeds ``servo_near_target`` of the target, reset to 1 when the residual changes sign
       (:class:`dem_taichi.protocol.SecantStiffness`); the loading then runs near the
       inertial-number cap. The paper scene uses "secant"; the default stays "elastic" (the
       validation runs of the default scene were made with it).
