@@ -264,3 +264,29 @@ def test_secant_servo_holds_the_targets_in_fewer_steps(run, tmp_path):
         assert fast.stages[name].max_inertial_number <= limit
     assert fast.stages["A_to_B"].steps < run.stages["A_to_B"].steps / 2
     assert fast.stages["A_to_C"].steps < run.stages["A_to_C"].steps
+
+
+def _benchmark_module(name: str):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_benchmark_summaries_read_a_run(run, tmp_path):
+    """benchmarks/compare_runs.py and validation_summary.py on the smoke run: a run against
+    itself changes nothing; the findings table carries its numbers."""
+    compare = _benchmark_module("compare_runs").compare(run.out_dir, run.out_dir)
+    assert "| C | " in compare
+    (b_row,) = [line for line in compare.splitlines() if line.startswith("| B |")]
+    assert b_row.count("+0.00%") == 1 and b_row.count("+0.0%") == 2 and "nan" not in b_row
+    summary = _benchmark_module("validation_summary")
+    row = summary._run_row(run.out_dir)
+    assert row["v_C"] == run.states["C"].measures["specific_volume"]
+    assert row["noise"] == pytest.approx(math.sqrt(0.5 / 40))
+    text = summary.table([row])
+    assert run.out_dir.name in text
