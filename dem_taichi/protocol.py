@@ -1044,6 +1044,8 @@ def run_protocol(
     from dem_taichi.probing import ProbeRecorder, probes_dataset
 
     start = time.perf_counter()
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ValueError(f"workers = {workers!r}: allowed values are integers >= 1")
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     scene = _with_pattern(scene, pattern)
@@ -1086,8 +1088,6 @@ def run_protocol(
         sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress
     )
     runner.out_dir = out
-    if workers < 1:
-        raise ValueError(f"workers = {workers}: allowed values are integers >= 1")
     branches = branch_names(config)
     try:
         history.append(sim.measure() | {"stage": "gas"})

@@ -238,12 +238,15 @@ def test_dynamic_sweep_only_at_the_chosen_states(run):
     )
 
 
-def test_cli_rejects_zero_workers(capsys):
-    from dem_taichi.protocol import main
+def test_cli_rejects_zero_workers(capsys, tmp_path):
+    from dem_taichi.protocol import main, run_protocol
 
     with pytest.raises(SystemExit):
         main(["smoke", "--out", "x", "--workers", "0"])
     assert "--workers 0" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="workers = 0"):
+        run_protocol("smoke", tmp_path / "never", workers=0)
+    assert not (tmp_path / "never").exists()  # rejected before anything is written
 
 
 def test_secant_servo_holds_the_targets_in_fewer_steps(run, tmp_path):
