@@ -2,7 +2,7 @@
 
 These are what the study reports (model.md §1 and §1.6), checked against what the DEM gives —
 not targets the code was tuned to. Each pattern runs the whole protocol of the `default` scene
-(~30–60 min each on a shared 2-core CPU); set ``DEM_VALIDATION_DIR`` to a folder holding
+(4–19 min each on a 2-core CPU, measured 2026-11-30); set ``DEM_VALIDATION_DIR`` to a folder holding
 ``default_<pattern>/`` results of ``python -m dem_taichi.protocol default --pattern <pattern>
 --out DIR/default_<pattern>`` to check existing runs instead of running them again.
 
