@@ -702,10 +702,10 @@ class ProtocolRunner:
                 c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
             )
             if c.servo_stiffness == "secant":
+                controlled = _controlled(weights, measures)
                 secant.update(
-                    _controlled(weights, measures), _strains(measures, control_axes),
-                    targets - _controlled(weights, measures), scale,
-                )  # fmt: skip
+                    controlled, _strains(measures, control_axes), targets - controlled, scale
+                )
                 gain = inverse_jacobian / (servo_time * secant.ratio)
             steps += c.servo_check_steps
             record.steps += c.servo_check_steps

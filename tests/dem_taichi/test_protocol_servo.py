@@ -25,10 +25,12 @@ TIME_STEP = 0.01
 class DelayedPlant:
     """Stand-in for the engine: what ProtocolRunner.servo/relax use of a Simulation."""
 
+    DELAY = DELAY_STEPS
+
     def __init__(self, stress0: float) -> None:
         self.stiffness = np.array([[20.0, 5.0], [5.0, 20.0]]) * stress0
         self.strain_history = [np.linalg.solve(self.stiffness, [stress0, stress0])] * (
-            DELAY_STEPS + 1
+            self.DELAY + 1
         )
         self.step = 0
         self.n_rods = 100
@@ -42,9 +44,15 @@ class DelayedPlant:
     def snapshot(self):
         raise RuntimeError("no network: the servo falls back to its stiffness guess")
 
+    def _stress(self) -> np.ndarray:
+        return self.stiffness @ self.strain_history[-1 - self.DELAY]
+
+    def _after_step(self) -> None:
+        """Called once the strain of a new step is appended (plastic plants update here)."""
+
     def measure(self) -> dict:
-        now, then = self.strain_history[-1], self.strain_history[-1 - DELAY_STEPS]
-        stress = self.stiffness @ then
+        now, then = self.strain_history[-1], self.strain_history[-1 - self.DELAY]
+        stress = self._stress()
         return {
             "step": self.step,
             "stress_xx": float(stress[0]),
@@ -61,13 +69,14 @@ class DelayedPlant:
         rates = np.array([control.x.value, control.y.value])
         for _ in range(n):
             self.strain_history.append(self.strain_history[-1] + rates * TIME_STEP)
-        del self.strain_history[: -DELAY_STEPS - 1]
+            self._after_step()
+        del self.strain_history[: -self.DELAY - 1]
         self.step += n
         return self.measure()
 
 
-def servo_on_delayed_plant(max_steps: int, **settings):
-    plant = DelayedPlant(10.0)
+def servo_on_delayed_plant(max_steps: int, plant_class=DelayedPlant, **settings):
+    plant = plant_class(10.0)
     config = ProtocolConfig(servo_time=2.0, servo_max_steps=max_steps, **settings)
     runner = ProtocolRunner(plant, config, ProbingConfig(enabled=False))
     targets = np.array([15.0, 15.0])
@@ -111,7 +120,6 @@ class PlasticPlant(DelayedPlant):
 
     def __init__(self, stress0: float) -> None:
         super().__init__(stress0)
-        self.strain_history = self.strain_history[: self.DELAY + 1]
         self.plastic = np.zeros(2)
         self.delayed = self.strain_history[0].copy()
         self.yield_stress = stress0
@@ -119,43 +127,19 @@ class PlasticPlant(DelayedPlant):
     def _stress(self) -> np.ndarray:
         return self.stiffness @ (self.delayed - self.plastic)
 
-    def measure(self) -> dict:
-        now, then = self.strain_history[-1], self.strain_history[-1 - self.DELAY]
-        stress = self._stress()
-        return {
-            "step": self.step,
-            "stress_xx": float(stress[0]),
-            "stress_yy": float(stress[1]),
-            "mean_stress": float(stress.mean()),
-            "unbalanced_force_ratio": float(1e3 * np.max(np.abs(now - then))),
-            "kinetic_energy": 0.0,
-            "inertial_number": float("nan"),
-            "strain_xx": float(now[0]),
-            "strain_yy": float(now[1]),
-        }
-
-    def run(self, n, control, output_every=None, writer=None):
-        rates = np.array([control.x.value, control.y.value])
-        for _ in range(n):
-            self.strain_history.append(self.strain_history[-1] + rates * TIME_STEP)
-            new = self.strain_history[-1 - self.DELAY]
-            increment = new - self.delayed
-            self.delayed = new.copy()
-            trial = self._stress()
-            if trial.mean() > self.yield_stress and increment.sum() > 0:
-                self.plastic += (1.0 - 1.0 / self.SOFTENING) * increment
-                self.yield_stress = max(self.yield_stress, self._stress().mean())
-        del self.strain_history[: -self.DELAY - 1]
-        self.step += n
-        return self.measure()
+    def _after_step(self) -> None:
+        new = self.strain_history[-1 - self.DELAY]
+        increment = new - self.delayed
+        self.delayed = new.copy()
+        if self._stress().mean() > self.yield_stress and increment.sum() > 0:
+            self.plastic += (1.0 - 1.0 / self.SOFTENING) * increment
+            self.yield_stress = max(self.yield_stress, self._stress().mean())
 
 
 def servo_on_plastic_plant(stiffness: str, max_steps: int = 2_000_000):
-    plant = PlasticPlant(10.0)
-    config = ProtocolConfig(servo_time=2.0, servo_max_steps=max_steps, servo_stiffness=stiffness)
-    runner = ProtocolRunner(plant, config, ProbingConfig(enabled=False))
-    targets = np.array([15.0, 15.0])
-    measures, _ = runner.servo("A_to_B", (0, 1), np.eye(2), targets, plant.measure())
+    runner, plant, measures, _ = servo_on_delayed_plant(
+        max_steps, PlasticPlant, servo_stiffness=stiffness
+    )
     return runner, plant, measures
 
 
