@@ -88,7 +88,6 @@ class ProbeResult:
     linear: object | None = None  # dem_taichi.linear_response.LinearResponse
     dynamic_seconds: float = 0.0
     linear_seconds: float = 0.0
-    relax_seconds: float = 0.0
     state_restored_bitwise: bool | None = None
     base_relaxed: bool | None = None
     base_stress_change: float = 0.0
@@ -234,9 +233,8 @@ def probe_state(
     )  # fmt: skip
     # the strict relaxation is part of the dynamic sweep's cost (the linear response alone
     # would not need it) only where the sweep runs
-    result.relax_seconds = time.perf_counter() - t0
     if dynamic:
-        result.dynamic_seconds += result.relax_seconds
+        result.dynamic_seconds += time.perf_counter() - t0
     if config.linear:
         t0 = time.perf_counter()
         result.linear = linear_probe(sim, config.sliding_contacts)
