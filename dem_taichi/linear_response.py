@@ -393,22 +393,73 @@ def _rigid_clusters(rod_i, rod_j, used, image, keep, n_rods):
     return labels, wraps
 
 
-def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, sliding_free: np.ndarray,
-                    include_geometric: bool):  # fmt: skip
-    """Per-pair K (P, 6, 4) = d(F_P, τ_P, F_Q, τ_Q)/dw and Jσ (P, 4, 4) = d(f ⊗ l)/dw."""
-    n_s = snapshot.n_spheres
-    offsets = forcelaw.disc_offsets(n_s, snapshot.spacing)
-    rod_i = snapshot.pair_i // n_s
-    rod_j = snapshot.pair_j // n_s
-    o_i = offsets[snapshot.pair_i % n_s]
-    o_j = offsets[snapshot.pair_j % n_s]
-    angle_i = snapshot.rod_angle[rod_i]
-    angle_j = snapshot.rod_angle[rod_j]
-    axis_i = np.stack([np.cos(angle_i), np.sin(angle_i)], axis=-1)
-    axis_j = np.stack([np.cos(angle_j), np.sin(angle_j)], axis=-1)
-    perp_i = _perp(axis_i)
-    perp_j = _perp(axis_j)
-    n_pairs = rod_i.shape[0]
+@dataclass(frozen=True)
+class StiffnessVariant:
+    """Changes of the network's *stiffness* at fixed forces, for frozen-network experiments.
+
+    The snapshot's forces (and so its equilibrium and static stress) are kept; only the springs
+    of the linearisation change. Defaults reproduce the engine's own linearisation exactly.
+
+    Attributes:
+        tangential_stiffness: k_t of stuck contacts [force/length]; None = the snapshot's k_t.
+        long_range_factor: factor on the long-range (charge and vdW) normal stiffness (≥ 0).
+        rolling_stiffness: κ_r [force·length/rad] of a rolling spring at every contact on the
+            relative rotation of the two bodies (torque -κ_r (φ_P - φ_Q) on P, +κ_r (φ_P - φ_Q)
+            on Q; MercuryDPM's rolling spring k_r gives κ_r = k_r r_eff², r_eff = d/4 for equal
+            discs). It carries no force, hence no stress term; stuck (no rolling cap).
+    """
+
+    tangential_stiffness: float | None = None
+    long_range_factor: float = 1.0
+    rolling_stiffness: float = 0.0
+
+    def __post_init__(self) -> None:
+        k_t = self.tangential_stiffness
+        if k_t is not None and not (np.isfinite(k_t) and k_t >= 0.0):
+            raise ValueError(f"StiffnessVariant.tangential_stiffness = {k_t!r}: need >= 0 or None")
+        for name in ("long_range_factor", "rolling_stiffness"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"StiffnessVariant.{name} = {value!r}: need a finite value >= 0")
+
+    def normal_stiffness(self, snapshot: NetworkSnapshot, pairs: forcelaw.PairForces):
+        """k_N of every pair with the long-range part scaled."""
+        if self.long_range_factor == 1.0:
+            return pairs.normal_stiffness
+        contact = forcelaw.contact_normal_stiffness(pairs.overlap, snapshot.k_n)
+        return contact + self.long_range_factor * (pairs.normal_stiffness - contact)
+
+    def k_t(self, snapshot: NetworkSnapshot) -> float:
+        """k_t of stuck contacts."""
+        return snapshot.k_t if self.tangential_stiffness is None else self.tangential_stiffness
+
+
+ENGINE_STIFFNESS = StiffnessVariant()
+
+
+def pair_jacobians(
+    pairs: forcelaw.PairForces,
+    offset_i: np.ndarray,
+    offset_j: np.ndarray,
+    branch: np.ndarray,
+    normal_stiffness: np.ndarray,
+    k_t: float,
+    mu: float,
+    k_n: float,
+    sliding_free: np.ndarray,
+    include_geometric: bool,
+    rolling_stiffness: float = 0.0,
+):  # fmt: skip
+    """Per-pair K (P, 6, 4) = d(F_P, τ_P, F_Q, τ_Q)/dw and Jσ (P, 4, 4) = d(f ⊗ l)/dw.
+
+    Bodies P, Q carry the two discs at offset vectors c_i = x_i - X_P and c_j = x_j - X_Q (rod
+    bodies: c = o a; disc bodies: c = 0); ``branch`` l is the stress branch vector of each pair;
+    ``normal_stiffness`` k_N, stuck-spring ``k_t`` and the Coulomb slope μ k_n of sliding
+    contacts; ``rolling_stiffness`` κ_r at contacts (see :class:`StiffnessVariant`).
+    """
+    perp_i = _perp(offset_i)  # d c_i / d φ_P = ẑ × c_i
+    perp_j = _perp(offset_j)
+    n_pairs = offset_i.shape[0]
     geometric = 1.0 if include_geometric else 0.0
 
     r = pairs.separation
@@ -422,8 +473,8 @@ def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, slidi
     b = np.zeros((n_pairs, 2, 4))  # dr = B w
     b[:, 0, 0] = 1.0
     b[:, 1, 1] = 1.0
-    b[:, :, 2] = o_i[:, None] * perp_i
-    b[:, :, 3] = -o_j[:, None] * perp_j
+    b[:, :, 2] = perp_i
+    b[:, :, 3] = -perp_j
     n_b = np.einsum("pa,pak->pk", n, b)  # n·dr per unit w
     t_b = np.einsum("pa,pak->pk", t, b)  # t·dr per unit w
 
@@ -432,14 +483,12 @@ def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, slidi
     d_tangential = np.zeros((n_pairs, 4))
     rolling = np.zeros((n_pairs, 4))
     rolling[:, 2] = rolling[:, 3] = 0.5 * rho
-    d_tangential[stuck] = -snapshot.k_t * (t_b[stuck] - rolling[stuck])
+    d_tangential[stuck] = -k_t * (t_b[stuck] - rolling[stuck])
     slide = pairs.in_contact & sliding_free
-    d_tangential[slide] = (
-        -np.sign(tangential[slide])[:, None] * snapshot.mu * snapshot.k_n * n_b[slide]
-    )
+    d_tangential[slide] = -np.sign(tangential[slide])[:, None] * mu * k_n * n_b[slide]
 
     j_f = (
-        -pairs.normal_stiffness[:, None, None] * n[:, :, None] * n_b[:, None, :]
+        -normal_stiffness[:, None, None] * n[:, :, None] * n_b[:, None, :]
         + t[:, :, None] * d_tangential[:, None, :]
         + geometric
         * (
@@ -448,12 +497,12 @@ def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, slidi
         )
     )
 
-    lever_i = o_i[:, None] * axis_i - 0.5 * r
-    lever_j = o_j[:, None] * axis_j + 0.5 * r
+    lever_i = offset_i - 0.5 * r
+    lever_j = offset_j + 0.5 * r
     d_lever_i = -0.5 * b
-    d_lever_i[:, :, 2] += o_i[:, None] * perp_i
+    d_lever_i[:, :, 2] += perp_i
     d_lever_j = 0.5 * b.copy()
-    d_lever_j[:, :, 3] += o_j[:, None] * perp_j
+    d_lever_j[:, :, 3] += perp_j
     j_force = np.stack([f[:, 1], -f[:, 0]], axis=-1)  # dh × f = (f_y, -f_x)·dh
     d_torque_i = np.einsum("pa,pak->pk", _perp(lever_i), j_f) + geometric * np.einsum(
         "pa,pak->pk", j_force, d_lever_i
@@ -461,18 +510,110 @@ def _pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, slidi
     d_torque_j = -np.einsum("pa,pak->pk", _perp(lever_j), j_f) - geometric * np.einsum(
         "pa,pak->pk", j_force, d_lever_j
     )
+    if rolling_stiffness > 0.0:
+        roll = np.where(pairs.in_contact, rolling_stiffness, 0.0)
+        d_torque_i[:, 2] -= roll
+        d_torque_i[:, 3] += roll
+        d_torque_j[:, 2] += roll
+        d_torque_j[:, 3] -= roll
     k = np.empty((n_pairs, 6, 4))
     k[:, 0:2] = j_f
     k[:, 2] = d_torque_i
     k[:, 3:5] = -j_f
     k[:, 5] = d_torque_j
 
-    branch = pairs.branch
     j_sigma = np.einsum("pak,pb->pabk", j_f, branch)
     for a in range(2):
         for bb in range(2):
             j_sigma[:, a, bb, bb] += geometric * f[:, a]
     return k, j_sigma.reshape(n_pairs, 4, 4)
+
+
+def _rod_pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces,
+                        sliding_free: np.ndarray, include_geometric: bool,
+                        variant: StiffnessVariant = ENGINE_STIFFNESS):  # fmt: skip
+    """:func:`pair_jacobians` for rigid-rod bodies (c = o_s a_r, centroid branch vectors)."""
+    n_s = snapshot.n_spheres
+    offsets = forcelaw.disc_offsets(n_s, snapshot.spacing)
+    rod_i = snapshot.pair_i // n_s
+    rod_j = snapshot.pair_j // n_s
+    o_i = offsets[snapshot.pair_i % n_s]
+    o_j = offsets[snapshot.pair_j % n_s]
+    angle_i = snapshot.rod_angle[rod_i]
+    angle_j = snapshot.rod_angle[rod_j]
+    axis_i = np.stack([np.cos(angle_i), np.sin(angle_i)], axis=-1)
+    axis_j = np.stack([np.cos(angle_j), np.sin(angle_j)], axis=-1)
+    return pair_jacobians(
+        pairs, o_i[:, None] * axis_i, o_j[:, None] * axis_j, pairs.branch,
+        variant.normal_stiffness(snapshot, pairs), variant.k_t(snapshot), snapshot.mu,
+        snapshot.k_n, sliding_free, include_geometric, variant.rolling_stiffness,
+    )  # fmt: skip
+
+
+def assemble(k_pair, j_sigma, branch, body_i, body_j, n_bodies: int, area: float,
+             stress: np.ndarray, include_geometric: bool):  # fmt: skip
+    """Sparse H (3n, 3n), Γ (3n, 4), D_q (4, 3n), D_G (4, 4) from per-pair blocks.
+
+    ``k_pair`` (P, 6, 4) and ``j_sigma`` (P, 4, 4) from :func:`pair_jacobians` (or any pair term
+    of that form, such as a bond), ``branch`` (P, 2) the stress branch vectors, ``body_i``,
+    ``body_j`` (P,) the two bodies (3 DOFs each: x, y, θ) of every pair.
+    """
+    n_used = k_pair.shape[0]
+    # w = S q_pair + W_G G
+    select = np.zeros((4, 6))
+    select[0, 0] = select[1, 1] = 1.0
+    select[0, 3] = select[1, 4] = -1.0
+    select[2, 2] = select[3, 5] = 1.0
+    w_strain = np.zeros((n_used, 4, 4))
+    w_strain[:, 0, 0] = branch[:, 0]  # dl_x = G_xx l_x + G_xy l_y
+    w_strain[:, 0, 1] = branch[:, 1]
+    w_strain[:, 1, 2] = branch[:, 0]  # dl_y = G_yx l_x + G_yy l_y
+    w_strain[:, 1, 3] = branch[:, 1]
+
+    dofs = np.concatenate(
+        [3 * body_i[:, None] + np.arange(3), 3 * body_j[:, None] + np.arange(3)], axis=1
+    )  # (P, 6)
+    n_dof_all = 3 * n_bodies
+    h_local = -np.einsum("pik,kj->pij", k_pair, select)
+    hessian = sparse.coo_matrix(
+        (
+            h_local.ravel(),
+            (np.repeat(dofs, 6, axis=1).ravel(), np.tile(dofs, (1, 6)).ravel()),
+        ),
+        shape=(n_dof_all, n_dof_all),
+    ).tocsc()
+    gamma = _scatter_rows(dofs, np.einsum("pik,pkc->pic", k_pair, w_strain), n_dof_all)
+    d_q = _scatter_rows(dofs, np.einsum("pak,kj->pja", j_sigma, select) / area, n_dof_all).T
+    geometric = 1.0 if include_geometric else 0.0
+    d_g = (
+        -geometric * np.outer(stress.ravel(), [1.0, 0.0, 0.0, 1.0])
+        + np.einsum("pak,pkc->ac", j_sigma, w_strain) / area
+    )
+    return hessian, gamma, d_q, d_g
+
+
+def kept_network(snapshot: NetworkSnapshot, active: np.ndarray, prune_rattlers: bool = True):
+    """Rods kept in the linear response, the pairs used, and the cluster label of every rod.
+
+    With ``prune_rattlers``: rods with at most one active pair are dropped iteratively, then
+    clusters that do not span the periodic cell (see the module docstring). Returns
+    (keep_rod (N,) bool, used (P,) bool, labels (N,) int with -1 for dropped rods).
+    """
+    n_rods = snapshot.n_rods
+    n_s = snapshot.n_spheres
+    rod_i = snapshot.pair_i // n_s
+    rod_j = snapshot.pair_j // n_s
+    image = np.rint(snapshot.pair_shift / snapshot.cell_lengths).astype(np.int64)
+    if prune_rattlers:
+        keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
+        used = active & keep_rod[rod_i] & keep_rod[rod_j]
+        labels, wraps = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
+        keep_rod &= (labels >= 0) & wraps[np.maximum(labels, 0)]
+    else:
+        keep_rod = np.ones(n_rods, dtype=bool)
+    used = active & keep_rod[rod_i] & keep_rod[rod_j]
+    labels, _ = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
+    return keep_rod, used, labels
 
 
 @dataclass(frozen=True)
@@ -509,6 +650,7 @@ def network_matrices(
     sliding_contacts: Literal["free", "stuck"] = "free",
     include_geometric: bool = True,
     prune_rattlers: bool = True,
+    variant: StiffnessVariant = ENGINE_STIFFNESS,
 ) -> NetworkMatrices:
     """Assemble H, Γ, D_q, D_G of a snapshot (see the module docstring for every term).
 
@@ -518,6 +660,7 @@ def network_matrices(
         include_geometric: keep the pre-stress terms.
         prune_rattlers: drop rods with at most one active pair (iteratively), then clusters that
             do not span the periodic cell, and their pairs (see the module docstring).
+        variant: stiffness changes at fixed forces (default: the engine's own springs).
     """
     if sliding_contacts not in ("free", "stuck"):
         raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
@@ -538,55 +681,15 @@ def network_matrices(
         else 0.0
     )
 
-    image = np.rint(snapshot.pair_shift / snapshot.cell_lengths).astype(np.int64)
-    if prune_rattlers:
-        keep_rod = _prune_rattlers(rod_i, rod_j, active, n_rods)
-        used = active & keep_rod[rod_i] & keep_rod[rod_j]
-        labels, wraps = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
-        keep_rod &= (labels >= 0) & wraps[np.maximum(labels, 0)]
-    else:
-        keep_rod = np.ones(n_rods, dtype=bool)
-    used = active & keep_rod[rod_i] & keep_rod[rod_j]
-    labels, _ = _rigid_clusters(rod_i, rod_j, used, image, keep_rod, n_rods)
+    keep_rod, used, labels = kept_network(snapshot, active, prune_rattlers)
     flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
 
-    k_pair, j_sigma = _pair_jacobians(snapshot, pairs, sliding_free, include_geometric)
-    k_pair = k_pair[used]
-    j_sigma = j_sigma[used]
-    branch = pairs.branch[used]
-    n_used = int(np.count_nonzero(used))
-
-    # w = S q_pair + W_G G
-    select = np.zeros((4, 6))
-    select[0, 0] = select[1, 1] = 1.0
-    select[0, 3] = select[1, 4] = -1.0
-    select[2, 2] = select[3, 5] = 1.0
-    w_strain = np.zeros((n_used, 4, 4))
-    w_strain[:, 0, 0] = branch[:, 0]  # dl_x = G_xx l_x + G_xy l_y
-    w_strain[:, 0, 1] = branch[:, 1]
-    w_strain[:, 1, 2] = branch[:, 0]  # dl_y = G_yx l_x + G_yy l_y
-    w_strain[:, 1, 3] = branch[:, 1]
-
-    dofs = np.concatenate(
-        [3 * rod_i[used, None] + np.arange(3), 3 * rod_j[used, None] + np.arange(3)], axis=1
-    )  # (P, 6)
-    n_dof_all = 3 * n_rods
-    h_local = -np.einsum("pik,kj->pij", k_pair, select)
-    hessian = sparse.coo_matrix(
-        (
-            h_local.ravel(),
-            (np.repeat(dofs, 6, axis=1).ravel(), np.tile(dofs, (1, 6)).ravel()),
-        ),
-        shape=(n_dof_all, n_dof_all),
-    ).tocsc()
-    gamma = _scatter_rows(dofs, np.einsum("pik,pkc->pic", k_pair, w_strain), n_dof_all)
-    d_q = _scatter_rows(dofs, np.einsum("pak,kj->pja", j_sigma, select) / area, n_dof_all).T
-    geometric = 1.0 if include_geometric else 0.0
-    d_g = (
-        -geometric * np.outer(stress.ravel(), [1.0, 0.0, 0.0, 1.0])
-        + np.einsum("pak,pkc->ac", j_sigma, w_strain) / area
-    )
+    k_pair, j_sigma = _rod_pair_jacobians(snapshot, pairs, sliding_free, include_geometric, variant)
+    hessian, gamma, d_q, d_g = assemble(
+        k_pair[used], j_sigma[used], pairs.branch[used], rod_i[used], rod_j[used], n_rods, area,
+        stress, include_geometric,
+    )  # fmt: skip
     return NetworkMatrices(
         hessian=hessian,
         strain_coupling=gamma,
@@ -606,6 +709,7 @@ def linear_response(
     sliding_contacts: Literal["free", "stuck"] = "free",
     include_geometric: bool = True,
     regularisation: float = 1e-10,
+    variant: StiffnessVariant = ENGINE_STIFFNESS,
 ) -> LinearResponse:
     """Zero-amplitude stiffness dσ/dε of a network in force-and-torque equilibrium.
 
@@ -617,24 +721,20 @@ def linear_response(
             k_t (the reversal/unloading branch).
         include_geometric: keep the pre-stress terms (needed for the exact dσ/dε).
         regularisation: relative η used only if the reduced H is exactly singular.
+        variant: stiffness changes at fixed forces (:class:`StiffnessVariant`; default: none).
 
     Returns: :class:`LinearResponse`. See the module docstring for the method.
     """
     if not (np.isfinite(regularisation) and regularisation > 0.0):
         raise ValueError(f"regularisation = {regularisation!r}: need a finite value > 0")
     start = time.perf_counter()
-    matrices = network_matrices(snapshot, sliding_contacts, include_geometric)
+    matrices = network_matrices(snapshot, sliding_contacts, include_geometric, variant=variant)
     n_rods = snapshot.n_rods
     n_s = snapshot.n_spheres
     used = matrices.used_pairs
     keep_rod = matrices.kept_rods
     rod_i = snapshot.pair_i // n_s
     rod_j = snapshot.pair_j // n_s
-    n_used = int(np.count_nonzero(used))
-    hessian = matrices.hessian
-    gamma = matrices.strain_coupling
-    n_dof_all = 3 * n_rods
-
     # reduced system: kept rods, translation of the best-connected rod of each cluster pinned
     keep_dof = np.repeat(keep_rod, 3)
     count = np.bincount(rod_i[used], minlength=n_rods) + np.bincount(rod_j[used], minlength=n_rods)
@@ -644,6 +744,27 @@ def linear_response(
         rod = int(members[np.argmax(count[members])])
         pinned.append(rod)
         keep_dof[3 * rod : 3 * rod + 2] = False
+    return relaxed_response(
+        matrices.hessian, matrices.strain_coupling, matrices.stress_dof, matrices.stress_strain,
+        matrices.stress, keep_dof, regularisation, start,
+        n_pairs_used=int(np.count_nonzero(used)), pinned=pinned, keep_rod=keep_rod,
+        unbalanced_force=matrices.unbalanced_force, sliding_contacts=sliding_contacts,
+        include_geometric=include_geometric,
+    )  # fmt: skip
+
+
+def relaxed_response(
+    hessian, gamma, d_q, d_g, stress, keep_dof, regularisation: float, start: float, *,
+    n_pairs_used: int, pinned, keep_rod, unbalanced_force: float, sliding_contacts: str,
+    include_geometric: bool,
+) -> LinearResponse:  # fmt: skip
+    """Solve H dq = Γ on the kept DOFs and build the :class:`LinearResponse` (any body kind).
+
+    ``keep_dof`` (n_dof,) bool: DOFs of kept bodies, pinned translations already removed; DOFs
+    with a zero row and column of H are dropped here. ``start``: perf_counter at the assembly.
+    """
+    n_dof_all = hessian.shape[0]
+    keep_dof = keep_dof.copy()
     # DOFs with a zero row and column of H are decoupled (e.g. the spin of a single-disc
     # "rod" without tangential forces): their displacement is arbitrary and changes nothing.
     # "Zero" is 1e-12 of the largest row sum: those terms cancel only to rounding.
@@ -681,8 +802,7 @@ def linear_response(
         residual = float(np.max(np.abs(reduced @ solution - rhs))) / rhs_scale
         relaxation[index] = solution
 
-    d_g = matrices.stress_strain
-    non_affine = matrices.stress_dof @ relaxation
+    non_affine = d_q @ relaxation
     tangent = d_g + non_affine
     asymmetry_scale = float(np.max(np.abs(tangent))) or 1.0
     asymmetry = float(np.max(np.abs(tangent[1] - tangent[2]))) / asymmetry_scale
@@ -691,12 +811,12 @@ def linear_response(
     info = SolverInfo(
         n_dof=int(index.size),
         n_decoupled_dof=n_decoupled,
-        n_pairs_used=n_used,
+        n_pairs_used=n_pairs_used,
         pinned_rods=np.asarray(pinned, dtype=np.int64),
         regularised=regularised,
         regularisation=added,
         residual=residual,
-        unbalanced_force=matrices.unbalanced_force,
+        unbalanced_force=unbalanced_force,
         stress_asymmetry=asymmetry,
         seconds=time.perf_counter() - start,
     )
@@ -705,7 +825,7 @@ def linear_response(
         affine_stiffness=voigt_stiffness(d_g),
         non_affine_stiffness=voigt_stiffness(non_affine),
         tangent=tangent.reshape(2, 2, 2, 2),
-        stress=matrices.stress,
+        stress=stress,
         e_oed_v=float(stiffness[1, 1]),
         e_oed_h=float(stiffness[0, 0]),
         bulk_modulus=float(0.25 * np.sum(stiffness[:2, :2])),

@@ -418,6 +418,13 @@ class ProtocolRunner:
             if self.config.save_states and self.out_dir is not None:
                 path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
                 self.checkpoints[label] = str(sim.save_checkpoint(path))
+        elif self.config.save_path_states and self.out_dir is not None and stage != "isotropic_to_A":
+            key = f"{stage}_{increment:03d}"
+            if stage == "radial":  # several radial paths: name them by their η
+                sx, sy = targets
+                key = f"radial_eta{2.0 * (sy - sx) / (sx + sy):+.3f}_{increment:03d}"
+            path = self.out_dir / f"path_{key}.npz"
+            self.checkpoints[f"path_{key}"] = str(self.sim.save_checkpoint(path))
         if self.relaxed_writer is not None:
             self.relaxed_writer.append(measures)
         return state

@@ -129,6 +129,10 @@ class ProtocolConfig(SceneSection):
     - ``inertial_number_safety`` [0.5]: the rates are capped at this fraction of the
       inertial-number limit of [control] (the stress can drop within a servo update).
     - ``save_states`` [true]: write a checkpoint ``state_<label>.npz`` at every labelled state.
+    - ``save_path_states`` [false]: also write ``path_<stage>_<increment>.npz`` at every relaxed
+      increment of the paths from A (the intermediate states of A→B, A→C, C→B, radial), for
+      frozen-network studies (``dem_taichi.flexible_response``, ``benchmarks/
+      stiffness_anisotropy.py``). Needs ``save_states``.
     - ``load_steps_min`` [200]: fewest steps over which a strain increment is applied.
     """
 
@@ -168,6 +172,7 @@ class ProtocolConfig(SceneSection):
     unbalanced_force_max: float = field(default=0.1, metadata=_range(0.0, None, lo_open=True))
     inertial_number_safety: float = field(default=0.5, metadata=_range(0.0, 1.0, lo_open=True))
     save_states: bool = True
+    save_path_states: bool = False
 
     def check(self) -> None:
         if self.min_compression_increment > self.compression_increment:
@@ -183,6 +188,10 @@ class ProtocolConfig(SceneSection):
                     f"[protocol] radial_stress_ratios: η = {eta} out of range: allowed (-2, 2) "
                     "(both principal stresses must stay compressive: σ = p (1 ± η/2))"
                 )
+        if self.save_path_states and not self.save_states:
+            raise SceneError(
+                "[protocol] save_path_states = true needs save_states = true"
+            )
         if self.run_unloading and not self.run_k0:
             raise SceneError(
                 "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"
