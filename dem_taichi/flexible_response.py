@@ -6,7 +6,8 @@ stored rigid rod, straight); inter-rod contacts and long-range pairs act between
 in :mod:`dem_taichi.linear_response` (disc-centred levers). The result is the zero-amplitude
 stiffness dσ/dε of the network *had its rods been bonded chains*, at the stored forces.
 
-Bond between disc g = (rod r, s) and h = (r, s + 1), reference length s_0 (the spacing), d = x_h − x_g:
+Bond between disc g = (rod r, s) and h = (r, s + 1), reference length s_0 (the spacing),
+d = x_h − x_g:
     θ_m = (θ_g + θ_h)/2, a_m = (cos θ_m, sin θ_m), t_m = ẑ × a_m
     e_n = d·a_m − s_0   (stretch, stiffness k_bn)
     e_t = d·t_m         (shear, k_bt; linearised: (u_h − u_g)·t − (s_0/2)(φ_g + φ_h))
@@ -94,8 +95,10 @@ class BondStiffness:
             )
 
     @classmethod
-    def relative(cls, k_n: float, diameter: float = 1.0, normal: float = 1.0, shear: float = 1.0,
-                 bending: float = 1.0, pre_force: str = "equilibrium") -> BondStiffness:  # fmt: skip
+    def relative(
+        cls, k_n: float, diameter: float = 1.0, normal: float = 1.0, shear: float = 1.0,
+        bending: float = 1.0, pre_force: str = "equilibrium",
+    ) -> BondStiffness:  # fmt: skip
         """Bonds from ratios: k_bn = normal k_n, k_bt = shear k_n, κ_b = bending k_n d²."""
         return cls(normal * k_n, shear * k_n, bending * k_n * diameter**2, pre_force)
 
@@ -148,11 +151,7 @@ def bond_pre_forces(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces | None
         previous = lam[:, s]
     last = n_s - 1
     residual = np.zeros((n_rods, 3))
-    residual[:, :2] = (
-        force[:, last]
-        - previous[:, 0:1] * axis
-        - previous[:, 1:2] * tangent
-    )
+    residual[:, :2] = force[:, last] - previous[:, 0:1] * axis - previous[:, 1:2] * tangent
     residual[:, 2] = torque[:, last] + 0.5 * s0 * previous[:, 1] - previous[:, 2]
     return lam, residual
 

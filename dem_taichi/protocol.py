@@ -418,7 +418,9 @@ class ProtocolRunner:
             if self.config.save_states and self.out_dir is not None:
                 path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
                 self.checkpoints[label] = str(sim.save_checkpoint(path))
-        elif self.config.save_path_states and self.out_dir is not None and stage != "isotropic_to_A":
+        elif (
+            self.config.save_path_states and self.out_dir is not None and stage != "isotropic_to_A"
+        ):
             key = f"{stage}_{increment:03d}"
             if stage == "radial":  # several radial paths: name them by their η
                 sx, sy = targets

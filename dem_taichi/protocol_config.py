@@ -189,9 +189,7 @@ class ProtocolConfig(SceneSection):
                     "(both principal stresses must stay compressive: σ = p (1 ± η/2))"
                 )
         if self.save_path_states and not self.save_states:
-            raise SceneError(
-                "[protocol] save_path_states = true needs save_states = true"
-            )
+            raise SceneError("[protocol] save_path_states = true needs save_states = true")
         if self.run_unloading and not self.run_k0:
             raise SceneError(
                 "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"

@@ -18,12 +18,25 @@ from dem_taichi.flexible_response import (
     three_point_compliance,
 )
 from dem_taichi.linear_response import StiffnessVariant, linear_response
-from tests.dem_taichi.test_linear_response import (  # noqa: F401  (fixtures)
-    friction_network,
-    frictionless_network,
-)
+from tests.dem_taichi.test_linear_response import deform, minimise_energy, random_rods, relax
 
 BONDS = BondStiffness(normal=1.3e3, shear=4.1e2, bending=70.0)
+
+
+@pytest.fixture(scope="module")
+def frictionless_network():
+    """12 acidic 3-disc rods relaxed at fixed cell (as in test_linear_response)."""
+    snap = minimise_energy(random_rods(10, 3, seed=1, fraction=0.95, charge=(1, -1, 1)))
+    return relax(snap, snap)
+
+
+@pytest.fixture(scope="module")
+def friction_network(frictionless_network):
+    """With loaded tangential springs: sheared by 2e-3 in steps and re-relaxed (μ = 10)."""
+    snap = dataclasses.replace(frictionless_network, k_t=400.0, mu=10.0)
+    for _ in range(4):
+        snap = relax(snap, deform(snap, np.array([[0.0, 5e-4], [0.0, 0.0]]), change_area=False))
+    return snap
 
 
 def bond_energy(x_g, theta_g, x_h, theta_h, rest, lam, bonds):
@@ -169,13 +182,9 @@ def test_bending_softens_and_pre_forces_matter(friction_network):
     assert not np.allclose(with_pre, without, rtol=1e-6)
 
 
-def test_stiffness_variants():
+def test_stiffness_variants(frictionless_network):
     """The default variant is the engine's linearisation; each knob moves what it should."""
-    from tests.dem_taichi.test_linear_response import minimise_energy, random_rods, relax
-
-    snap = minimise_energy(random_rods(10, 3, seed=1, fraction=0.95, charge=(1, -1, 1)))
-    snap = relax(snap, snap)
-    snap = dataclasses.replace(snap, k_t=300.0)
+    snap = dataclasses.replace(frictionless_network, k_t=300.0)
     base = linear_response(snap, "stuck")
     same = linear_response(snap, "stuck", variant=StiffnessVariant(tangential_stiffness=300.0))
     np.testing.assert_array_equal(base.tangent, same.tangent)
