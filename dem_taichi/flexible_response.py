@@ -217,6 +217,7 @@ def flexible_response(
     include_geometric: bool = True,
     variant: StiffnessVariant = ENGINE_STIFFNESS,
     regularisation: float = 1e-10,
+    stability: bool = False,
 ) -> LinearResponse:
     """Zero-amplitude stiffness of the network with its rods as bonded chains of discs.
 
@@ -290,7 +291,7 @@ def flexible_response(
         hessian, gamma, d_q, d_g, stress_all, keep_dof, regularisation, start,
         n_pairs_used=int(np.count_nonzero(used)), pinned=pinned, keep_rod=keep_rod,
         unbalanced_force=unbalanced, sliding_contacts=sliding_contacts,
-        include_geometric=include_geometric,
+        include_geometric=include_geometric, stability=stability,
     )  # fmt: skip
 
 

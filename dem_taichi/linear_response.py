@@ -249,6 +249,10 @@ class SolverInfo:
             the response is exact only for an equilibrium (small value).
         stress_asymmetry: |dσ_xy - dσ_yx| / max |dσ| of the relaxed response (0 in equilibrium).
         seconds: wall time of the assembly and solve.
+        n_negative_modes: negative eigenvalues of the symmetric part of the reduced H (Sylvester
+            inertia of a symmetric-mode LU), only with ``stability=True``; > 0: the frozen
+            network is not stable under its own forces (e.g. pre-stressed soft rods buckle) and
+            its moduli mean nothing. -1 = not computed.
     """
 
     n_dof: int
@@ -261,6 +265,28 @@ class SolverInfo:
     unbalanced_force: float
     stress_asymmetry: float
     seconds: float
+    n_negative_modes: int = -1
+
+
+def negative_modes(matrix) -> int:
+    """Number of negative eigenvalues of the symmetric part of a sparse matrix.
+
+    SuperLU in symmetric mode (diagonal pivots only, the same permutation on rows and columns)
+    gives P S Pᵀ = L U with U = D Lᵀ, and by Sylvester's law of inertia the negative entries of
+    D count the negative eigenvalues. Returns -1 if the factorisation had to pivot off the
+    diagonal (the count would not be an inertia) or failed.
+    """
+    sym = (0.5 * (matrix + matrix.T)).tocsc()
+    try:
+        factor = sparse_linalg.splu(
+            sym, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )  # fmt: skip
+    except RuntimeError:
+        return -1
+    if not np.array_equal(factor.perm_r, factor.perm_c):
+        return -1
+    return int(np.count_nonzero(factor.U.diagonal() < 0.0))
 
 
 @dataclass(frozen=True)
@@ -710,6 +736,7 @@ def linear_response(
     include_geometric: bool = True,
     regularisation: float = 1e-10,
     variant: StiffnessVariant = ENGINE_STIFFNESS,
+    stability: bool = False,
 ) -> LinearResponse:
     """Zero-amplitude stiffness dσ/dε of a network in force-and-torque equilibrium.
 
@@ -722,6 +749,7 @@ def linear_response(
         include_geometric: keep the pre-stress terms (needed for the exact dσ/dε).
         regularisation: relative η used only if the reduced H is exactly singular.
         variant: stiffness changes at fixed forces (:class:`StiffnessVariant`; default: none).
+        stability: also count the negative modes of H (``solver.n_negative_modes``).
 
     Returns: :class:`LinearResponse`. See the module docstring for the method.
     """
@@ -749,14 +777,14 @@ def linear_response(
         matrices.stress, keep_dof, regularisation, start,
         n_pairs_used=int(np.count_nonzero(used)), pinned=pinned, keep_rod=keep_rod,
         unbalanced_force=matrices.unbalanced_force, sliding_contacts=sliding_contacts,
-        include_geometric=include_geometric,
+        include_geometric=include_geometric, stability=stability,
     )  # fmt: skip
 
 
 def relaxed_response(
     hessian, gamma, d_q, d_g, stress, keep_dof, regularisation: float, start: float, *,
     n_pairs_used: int, pinned, keep_rod, unbalanced_force: float, sliding_contacts: str,
-    include_geometric: bool,
+    include_geometric: bool, stability: bool = False,
 ) -> LinearResponse:  # fmt: skip
     """Solve H dq = Γ on the kept DOFs and build the :class:`LinearResponse` (any body kind).
 
@@ -781,8 +809,11 @@ def relaxed_response(
     added = 0.0
     residual = 0.0
     n_floppy = 0
+    n_negative = -1
     if index.size:
         reduced = hessian[index][:, index].tocsc()
+        if stability:
+            n_negative = negative_modes(reduced)
         rhs = gamma[index]
         try:
             factor = sparse_linalg.splu(reduced)
@@ -819,6 +850,7 @@ def relaxed_response(
         unbalanced_force=unbalanced_force,
         stress_asymmetry=asymmetry,
         seconds=time.perf_counter() - start,
+        n_negative_modes=n_negative,
     )
     return LinearResponse(
         stiffness=stiffness,

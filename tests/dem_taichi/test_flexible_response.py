@@ -221,3 +221,19 @@ def test_variant_rejects_invalid_values():
         StiffnessVariant(tangential_stiffness=-1.0)
     with pytest.raises(ValueError, match="rolling_stiffness"):
         StiffnessVariant(rolling_stiffness=np.nan)
+
+
+def test_negative_modes_count_the_inertia(frictionless_network):
+    """The symmetric-mode LU counts negative eigenvalues (against numpy on a dense matrix); the
+    relaxed frictionless network is stable, and pre-stressed rods with very soft bonds are not."""
+    import scipy.sparse as sparse
+
+    from dem_taichi.linear_response import negative_modes
+
+    rng = np.random.default_rng(4)
+    q, _ = np.linalg.qr(rng.normal(size=(30, 30)))
+    eigenvalues = np.concatenate([-rng.uniform(0.1, 2.0, 4), rng.uniform(0.1, 2.0, 26)])
+    matrix = sparse.csc_matrix(q @ np.diag(eigenvalues) @ q.T)
+    assert negative_modes(matrix) == 4
+    assert linear_response(frictionless_network, stability=True).solver.n_negative_modes == 0
+    assert linear_response(frictionless_network).solver.n_negative_modes == -1

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from types import MappingProxyType
 
 import numpy as np
@@ -35,6 +36,7 @@ def smoke_protocol_scene(**protocol):
         radial_stress_ratios="0.4",
         relax_unbalanced_force=1e-4,
         servo_max_steps=400_000,
+        save_path_states=True,
     )
     settings.update(protocol)
     from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
@@ -276,6 +278,7 @@ def _benchmark_module(name: str):
     path = Path(__file__).resolve().parents[2] / "benchmarks" / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 
@@ -293,3 +296,26 @@ def test_benchmark_summaries_read_a_run(run, tmp_path):
     assert row["noise"] == pytest.approx(math.sqrt(0.5 / 40))
     text = summary.table([row])
     assert run.out_dir.name in text
+
+
+def test_path_states_saved_and_stiffness_matrix_runs_on_them(run, tmp_path):
+    """save_path_states writes every relaxed increment of the paths from A (not the gas
+    compression); benchmarks/stiffness_anisotropy.py reads them all and its rigid variant is the
+    protocol's own linear-response probe at B."""
+    names = sorted(p.name for p in run.out_dir.glob("path_*.npz"))
+    assert "path_A_to_C_001.npz" in names and "path_C_to_B_001.npz" in names
+    assert any(n.startswith("path_radial_eta+0.400_") for n in names)
+    assert not any("isotropic_to_A" in n for n in names)
+    matrix = _benchmark_module("stiffness_anisotropy")
+    rows, _ = matrix.run_matrix(run.out_dir, tmp_path, progress=False)
+    states = {r["state"] for r in rows}
+    assert {"A", "B", "C", "B'", "A_to_C_1", "C_to_B_1"} <= states
+    names = {r["variant"] for r in rows}
+    assert {"rigid", "chain_kb0.1", "bend_kb1", "rigid_kt1_stuck", "mercury_kr1"} <= names
+    rigid_b = [r for r in rows if r["state"] == "B" and r["variant"] == "rigid"][0]
+    probes = open_probes(run.files["probes"])
+    assert rigid_b["e_v"] == pytest.approx(float(probes["e_oed_v_linear"].values[0]), rel=1e-2)
+    assert rigid_b["stable"]
+    for suffix in (".csv", ".md", ".png"):
+        assert (tmp_path / f"stiffness_anisotropy_matrix{suffix}").stat().st_size > 0
+    assert "Isotropic control" in (tmp_path / "stiffness_anisotropy_matrix.md").read_text()
