@@ -319,3 +319,13 @@ def test_path_states_saved_and_stiffness_matrix_runs_on_them(run, tmp_path):
     for suffix in (".csv", ".md", ".png"):
         assert (tmp_path / f"stiffness_anisotropy_matrix{suffix}").stat().st_size > 0
     assert "Isotropic control" in (tmp_path / "stiffness_anisotropy_matrix.md").read_text()
+    # replica statistics over two copies of the run: the mean is the run's value, no spread
+    replicas = _benchmark_module("stiffness_anisotropy_replicas")
+    text, result = replicas.summarise({"smoke": [tmp_path, tmp_path]})
+    rigid_c = [r for r in rows if r["state"] == "C" and r["variant"] == "rigid"][0]
+    mean, half, n = result["smoke"]["rigid"]["ratio_C"]
+    assert (mean, half, n) == (pytest.approx(rigid_c["ratio"]), 0.0, 2)
+    assert result["smoke"]["rigid"]["dC"][:2] == (0.0, 0.0)
+    assert "## smoke: 2 runs" in text
+    replicas.figure(result, tmp_path / "replicas.png")
+    assert (tmp_path / "replicas.png").stat().st_size > 0
