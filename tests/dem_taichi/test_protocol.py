@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import sys
+from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
@@ -56,6 +58,15 @@ def run(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("protocol_smoke")
     return run_protocol(smoke_protocol_scene(), out)
+
+
+@pytest.fixture(scope="module")
+def secant_run(tmp_path_factory):
+    """The same protocol with the secant servo (the paper scene's setting)."""
+    from dem_taichi.protocol import run_protocol
+
+    out = tmp_path_factory.mktemp("protocol_smoke_secant")
+    return run_protocol(smoke_protocol_scene(servo_stiffness="secant"), out)
 
 
 def test_transition_detector_finds_A(run):
@@ -251,13 +262,11 @@ def test_cli_rejects_zero_workers(capsys, tmp_path):
     assert not (tmp_path / "never").exists()  # rejected before anything is written
 
 
-def test_secant_servo_holds_the_targets_in_fewer_steps(run, tmp_path):
+def test_secant_servo_holds_the_targets_in_fewer_steps(run, secant_run):
     """servo_stiffness = "secant" (the paper scene's setting) reaches every target within the
     tolerance at relaxed states, under the inertial-number limit, in fewer loading steps than
     the elastic-stiffness servo of the module run (measured on smoke: 4x fewer on A→B)."""
-    from dem_taichi.protocol import run_protocol
-
-    fast = run_protocol(smoke_protocol_scene(servo_stiffness="secant"), tmp_path / "secant")
+    fast = secant_run
     for state in fast.path_states:
         if state.stage in ("A_to_B", "C_to_B", "radial"):
             m, t = state.measures, state.targets
@@ -329,3 +338,70 @@ def test_path_states_saved_and_stiffness_matrix_runs_on_them(run, tmp_path):
     assert "## smoke: 2 runs" in text
     replicas.figure(result, tmp_path / "replicas.png")
     assert (tmp_path / "replicas.png").stat().st_size > 0
+
+
+# ---------------------------------------------------------------------------------------------
+# Regression: the smoke protocol's outputs, bitwise
+# ---------------------------------------------------------------------------------------------
+
+#: Outputs of the module runs recorded at commit 0a5cc67, before the restructure of issue 9
+#: (elastic servo; secant servo). Regenerate only for an intended change of behaviour, and say
+#: why in the commit: ``DEM_RECORD_REFERENCE=1 .venv/bin/python -m pytest -q
+#: tests/dem_taichi/test_protocol.py -k bitwise_equal_the_reference``.
+DATA = Path(__file__).resolve().parents[1] / "data"
+REFERENCE = DATA / "smoke_protocol_reference.npz"
+REFERENCE_SECANT = DATA / "smoke_protocol_secant_reference.npz"
+
+
+def _outputs(run, history: bool) -> dict[str, np.ndarray]:
+    """Every variable of history.nc (if ``history``), relaxed_states.nc and probes.nc and the
+    rods of every labelled configuration, keyed ``<file>/<variable>`` (strings as fixed-width
+    unicode)."""
+    files = {"relaxed_states": open_history, "probes": open_probes}
+    if history:
+        files["history"] = open_history
+    out: dict[str, np.ndarray] = {}
+    for key, opener in files.items():
+        ds = opener(run.files[key])
+        for name in sorted(ds.variables):
+            values = np.asarray(ds[name].values)
+            out[f"{key}/{name}"] = values.astype(str) if values.dtype == object else values
+    for label in run.states:
+        conf = open_configuration(run.files[f"configuration_{label}"])
+        for name in sorted(conf.variables):
+            out[f"configuration_{label}/{name}"] = np.asarray(conf[name].values)
+    return out
+
+
+def _assert_bitwise_equal(outputs: dict[str, np.ndarray], reference_file: Path) -> None:
+    if os.environ.get("DEM_RECORD_REFERENCE"):
+        reference_file.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(reference_file, **outputs)
+    with np.load(reference_file) as stored:
+        reference = {k: stored[k] for k in stored.files}
+    assert sorted(outputs) == sorted(reference)
+    different = []
+    for key, expected in reference.items():
+        got = outputs[key]
+        same = got.dtype == expected.dtype and got.shape == expected.shape
+        if same and got.dtype.kind in "fiub":
+            same = got.tobytes() == expected.tobytes()  # bitwise: NaNs and signed zeros too
+        elif same:
+            same = bool(np.all(got == expected))
+        if not same:
+            different.append(key)
+    assert not different, f"differ from {reference_file.name}: {different}"
+
+
+def test_smoke_outputs_bitwise_equal_the_reference(run):
+    """The module run (history records, relaxed path states, probe moduli and curves, rods at
+    the labelled states) equals, bit for bit, the outputs recorded before the restructure of
+    ``dem_taichi`` (issue 9): the serial engine is deterministic, so any difference is a change
+    of behaviour."""
+    _assert_bitwise_equal(_outputs(run, history=True), REFERENCE)
+
+
+def test_secant_smoke_outputs_bitwise_equal_the_reference(secant_run):
+    """The same for the secant servo's run (all but the history: its relaxed states and rods
+    carry any change of the loading)."""
+    _assert_bitwise_equal(_outputs(secant_run, history=False), REFERENCE_SECANT)
