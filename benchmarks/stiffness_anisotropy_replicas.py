@@ -118,7 +118,8 @@ def summarise(groups: dict[str, list[Path]]) -> tuple[str, dict]:
     for group, folders in groups.items():
         runs = [run_findings(read_matrix(f)) for f in folders]
         names = list(runs[0])
-        lines += [f"## {group}: {len(folders)} runs ({', '.join(f.name for f in folders)})", ""]
+        names_ = ", ".join(f.parent.name if f.name == "matrix" else f.name for f in folders)
+        lines += [f"## {group}: {len(folders)} runs ({names_})", ""]
         head = (
             ["variant"]
             + [LABELS[k] for k in KEYS]

@@ -431,8 +431,9 @@ class StiffnessVariant:
         long_range_factor: factor on the long-range (charge and vdW) normal stiffness (≥ 0).
         rolling_stiffness: κ_r [force·length/rad] of a rolling spring at every contact on the
             relative rotation of the two bodies (torque -κ_r (φ_P - φ_Q) on P, +κ_r (φ_P - φ_Q)
-            on Q; MercuryDPM's rolling spring k_r gives κ_r = k_r r_eff², r_eff = d/4 for equal
-            discs). It carries no force, hence no stress term; stuck (no rolling cap).
+            on Q; MercuryDPM's rolling spring k_r gives κ_r = k_r d_eff², with d_eff = r = d/2
+            for equal spheres as in model.md §1.7). It carries no force, hence no stress term;
+            always stuck (no rolling cap μ_r |f_n|).
     """
 
     tangential_stiffness: float | None = None
