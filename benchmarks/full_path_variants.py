@@ -505,9 +505,10 @@ def markdown(rows: list[dict]) -> str:
         "Written by `benchmarks/full_path_variants.py` from the finished runs under "
         f"`{ROOT}` ({len(rows)} runs). Scene: `dem_taichi/scenes/default.toml` (300 rods × 5 "
         'discs, acidic) with `servo_stiffness = "secant"`, linear-response probes at every '
-        "relaxed increment (no dynamic sweep); seeds 2, 11, 12. Moduli are the linear-response "
-        "constrained moduli (stuck contacts). Fabric = rod β_yy − β_xx (negative: rods lie "
-        "horizontal). Stresses in kPa (1 DEM unit = 1 kPa).",
+        "relaxed increment (no dynamic sweep); seeds "
+        f"{', '.join(str(x) for x in sorted({r['seed'] for r in rows}))}. Moduli are the "
+        "linear-response constrained moduli (stuck contacts). Fabric = rod β_yy − β_xx "
+        "(negative: rods lie horizontal). Stresses in kPa (1 DEM unit = 1 kPa).",
         "",
         STUDY,
         "",
@@ -639,7 +640,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown variant(s) {unknown}; allowed: {', '.join(VARIANTS)}")
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()] or list(SEEDS)
     members = [m for m in ORDER if m[0] in variants and m[1] in seeds]
-    members += [(v, s) for v in variants for s in seeds if (v, s) not in members]
+    # seeds beyond the listed order: seed by seed, so that a stop leaves every variant sampled
+    members += [(v, s) for s in seeds for v in variants if (v, s) not in members]
     if args.summarise:
         rows = write_results(root)
         print(MD_PATH.read_text())
