@@ -9,7 +9,7 @@ vectors l (centroid–centroid), weighted by the pair stiffness k_N. This module
 so that a DEM result can be read: e.g. rods lying down and stacked make contact normals
 vertical, which stiffens the vertical direction, not the horizontal one.
 
-Definitions (DEM units; pairs as in :class:`dem_taichi.linear_response.NetworkSnapshot`):
+Definitions (DEM units; pairs as in :class:`dem_taichi.snapshot.NetworkSnapshot`):
 
 - rod fabric β = (1/N) Σ a ⊗ a (study Eq. 1), deviator β_yy − β_xx;
 - interaction-normal fabric φ = ⟨n ⊗ n⟩ over a set of pairs, deviator φ_yy − φ_xx ∈ [−1, 1];

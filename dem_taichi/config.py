@@ -19,9 +19,10 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
                     target_specific_volume, relax_steps (the engine's built-in compression run)
 ``[output]``        every, checkpoint_every
 
-Other packages may add sections (e.g. issue 4's ``[protocol]``) without editing this module:
-``register_section("protocol", ProtocolConfig)``; the loaded instance is then found in
-``scene.extensions["protocol"]``.
+Extension sections: ``[protocol]`` and ``[probing]`` (:mod:`dem_taichi.protocol_config`) are
+known to every loader; other code may add more with ``register_section(name, cls)``. A loaded
+extension is found in ``scene.extensions[name]``. The section base (:class:`SceneSection`,
+:class:`SceneError`) lives in :mod:`dem_taichi.sections`, below both.
 
 Symbols: k_n normal stiffness, γ_n normal damping, e_n normal restitution, t_c contact duration
 (two discs of mass m): t_c = π / sqrt(2 k_n/m − (γ_n/m)²), e_n = exp(−γ_n t_c / m).
@@ -54,6 +55,11 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+from dem_taichi.sections import SceneError, SceneSection
+from dem_taichi.sections import field_choices as _choices
+from dem_taichi.sections import field_range as _range
+
 __all__ = [
     "SceneError",
     "SceneSection",
@@ -76,74 +82,6 @@ __all__ = [
     "gamma_from_restitution",
     "restitution_from_gamma",
 ]
-
-
-class SceneError(ValueError):
-    """An invalid scene: the message names the offending key and what is allowed."""
-
-
-def _range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
-    return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
-
-
-def _choices(*values, doc=""):
-    return {"choices": tuple(values), "doc": doc}
-
-
-def _describe_range(meta) -> str:
-    lo, hi, lo_open, hi_open = meta["range"]
-    left = "(" if lo_open else "["
-    right = ")" if (hi_open or hi is None) else "]"
-    return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}"
-
-
-class SceneSection:
-    """Base of every section dataclass: validates field values after construction."""
-
-    SECTION = ""
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            key = f"[{self.SECTION}] {f.name}"
-            if value is None:
-                if f.metadata.get("optional"):
-                    continue
-                raise SceneError(f"{key} is required")
-            kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
-            kind = kind.replace(" | None", "")
-            if kind == "bool":
-                if not isinstance(value, bool):
-                    raise SceneError(f"{key} = {value!r}: must be true or false")
-            elif kind == "int":
-                if isinstance(value, bool) or not isinstance(value, int):
-                    raise SceneError(f"{key} = {value!r}: must be an integer")
-            elif kind == "float":
-                if isinstance(value, bool) or not isinstance(value, int | float):
-                    raise SceneError(f"{key} = {value!r}: must be a number")
-                if not math.isfinite(value):
-                    raise SceneError(f"{key} = {value!r}: must be finite")
-                object.__setattr__(self, f.name, float(value))
-                value = float(value)
-            elif kind == "str":
-                if not isinstance(value, str):
-                    raise SceneError(f"{key} = {value!r}: must be a string")
-            if "range" in f.metadata:
-                lo, hi, lo_open, hi_open = f.metadata["range"]
-                bad = (lo is not None and (value < lo or (lo_open and value == lo))) or (
-                    hi is not None and (value > hi or (hi_open and value == hi))
-                )
-                if bad:
-                    raise SceneError(
-                        f"{key} = {value!r} is out of range: allowed {_describe_range(f.metadata)}"
-                    )
-            if "choices" in f.metadata and value not in f.metadata["choices"]:
-                allowed = " | ".join(str(c) for c in f.metadata["choices"])
-                raise SceneError(f"{key} = {value!r}: allowed values are {allowed}")
-        self.check()
-
-    def check(self) -> None:
-        """Cross-field checks of the section (override)."""
 
 
 @dataclass(frozen=True)
@@ -265,7 +203,8 @@ _CORE_SECTIONS: dict[str, type[SceneSection]] = {
     "control": Control,
     "output": Output,
 }
-_EXTENSION_SECTIONS: dict[str, type] = {}
+# the virtual experiments' sections ([protocol], [probing]), known to every scene loader
+_EXTENSION_SECTIONS: dict[str, type] = {"protocol": ProtocolConfig, "probing": ProbingConfig}
 
 
 def register_section(name: str, cls: type) -> None:
@@ -379,10 +318,6 @@ def _load_section(cls: type, name: str, table: Any) -> Any:
 
 def scene_from_dict(data: dict, source_text: str = "") -> Scene:
     """Build a :class:`Scene` from a nested dict (as returned by ``tomllib``)."""
-    # The virtual-experiment sections ([protocol], [probing]) register themselves on import;
-    # import lazily here so that scenes carrying them load from anywhere.
-    import dem_taichi.protocol_config  # noqa: F401
-
     allowed = {**_CORE_SECTIONS, **_EXTENSION_SECTIONS}
     unknown = sorted(set(data) - set(allowed))
     if unknown:

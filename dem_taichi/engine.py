@@ -840,8 +840,8 @@ class Simulation:
     # ------------------------------------------------------------------------------------------
     # network snapshot
     def snapshot(self):
-        """The interacting network as a :class:`dem_taichi.linear_response.NetworkSnapshot`."""
-        from dem_taichi.linear_response import NetworkSnapshot
+        """The interacting network as a :class:`dem_taichi.snapshot.NetworkSnapshot`."""
+        from dem_taichi.snapshot import NetworkSnapshot
 
         self._measure_sums()
         i, k, packed, bits = self._contact_pairs()

@@ -40,12 +40,10 @@ Conventions fixed here (the notes leave them open; the engine must match them):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # pragma: no cover
-    from dem_taichi.linear_response import NetworkSnapshot
+from dem_taichi.snapshot import NetworkSnapshot
 
 __all__ = [
     "PairForces",

@@ -37,6 +37,7 @@ import xarray as xr
 
 from dem_taichi.analysis import Plateau, elastic_plateau
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 
 __all__ = [
     "DegradationCurve",
@@ -102,8 +103,6 @@ class ProbeResult:
 
 
 def _relax_strict(sim, config: ProbingConfig, check_steps: int) -> tuple[dict, bool, int]:
-    from dem_taichi.protocol import relax
-
     return relax(
         sim,
         "probe",
@@ -127,8 +126,6 @@ def dynamic_modulus(
     Runs on ``sim`` from ``base_state`` (default: the current state, copied) and restores it.
     Returns (E, details) with the relaxed stresses and applied strains of both signs.
     """
-    from dem_taichi.protocol import apply_strain, strain_rate_cap
-
     if axis not in AXES:
         raise ValueError(f"axis = {axis!r}: allowed values are x | y")
     if not amplitude > 0:

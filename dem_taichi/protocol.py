@@ -65,6 +65,7 @@ from dem_taichi.protocol_config import (
     probing_settings,
     protocol_settings,
 )
+from dem_taichi.quasistatic import _control, apply_strain, relax, strain_rate_cap
 
 __all__ = [
     "ProtocolError",
@@ -198,82 +199,6 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
-
-
-# ---------------------------------------------------------------------------------------------
-# Small building blocks (usable on their own, e.g. by probing.py and tests)
-# ---------------------------------------------------------------------------------------------
-
-
-def strain_rate_cap(sim, mean_stress: float, floor_stress: float, safety: float = 1.0) -> float:
-    """Largest strain rate keeping I = ε̇ d sqrt(ρ/p) ≤ safety · I_max ([control]
-    inertial_number_max).
-
-    ρ = rod mass / rod solid area (2D density); p = max(mean_stress, floor_stress) (DEM units).
-    """
-    geo = sim.geometry
-    rho = geo.mass / geo.solid_area
-    p = max(float(mean_stress), float(floor_stress))
-    i_max = safety * sim.scene.control.inertial_number_max
-    return i_max * math.sqrt(p / rho) / geo.diameter
-
-
-def _control(stage: str, rate_x: float, rate_y: float):
-    from dem_taichi.engine import CellControl
-
-    return CellControl.strain_rate(rate_x, rate_y, stage=stage)
-
-
-def relax(
-    sim,
-    stage: str,
-    unbalanced_force: float,
-    kinetic_energy_per_rod: float,
-    check_steps: int,
-    max_steps: int,
-    give_up: Callable[[dict, int], bool] | None = None,
-) -> tuple[dict, bool, int]:
-    """Run at fixed cell until UFR < ``unbalanced_force`` and KE/N < ``kinetic_energy_per_rod``.
-
-    Checks every ``check_steps`` steps, stops after ``max_steps``; ``give_up(measures, steps)``
-    may end it early (returns not relaxed). Returns (measures, relaxed, steps run).
-    """
-    steps = 0
-    measures: dict = {}
-    control = _control(stage, 0.0, 0.0)
-    while steps < max_steps:
-        n = min(check_steps, max_steps - steps)
-        measures = sim.run(n, control, output_every=n)
-        steps += n
-        ufr = measures["unbalanced_force_ratio"]
-        ke = measures["kinetic_energy"] / sim.n_rods
-        if math.isfinite(ufr) and ufr < unbalanced_force and ke < kinetic_energy_per_rod:
-            return measures, True, steps
-        if give_up is not None and give_up(measures, steps):
-            return measures, False, steps
-    return measures, False, steps
-
-
-def apply_strain(
-    sim,
-    strain: tuple[float, float],
-    stage: str,
-    max_rate: float,
-    min_steps: int,
-    writer: Any = None,
-    output_every: int | None = None,
-) -> dict:
-    """Apply the logarithmic strain increments (Δε_xx, Δε_yy) (compression positive) at constant
-    rates, over n = max(min_steps, ceil(max|Δε| / (max_rate dt))) steps; returns the measures.
-
-    The cell then has L = L_0 exp(−Δε) on each axis (the engine integrates L̇ = −ε̇ L exactly).
-    """
-    dt = sim.scene.time_step
-    biggest = max(abs(strain[0]), abs(strain[1]))
-    n = max(int(min_steps), int(math.ceil(biggest / (max_rate * dt))) if biggest > 0 else 0, 1)
-    rates = (strain[0] / (n * dt), strain[1] / (n * dt))
-    control = _control(stage, rates[0], rates[1])
-    return sim.run(n, control, output_every=output_every or n, writer=writer)
 
 
 # ---------------------------------------------------------------------------------------------

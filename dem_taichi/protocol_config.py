@@ -1,11 +1,11 @@
 """Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]`` (model.md §1.6).
 
-Both are frozen dataclasses validated by :class:`dem_taichi.config.SceneSection` (type, range,
-choices; the message names the key and what is allowed) and registered with
-:func:`dem_taichi.config.register_section`, so a scene carrying them loads from anywhere (the scene
-loader imports this module). The loaded instances are ``scene.extensions["protocol"]`` and
-``scene.extensions["probing"]``; :func:`protocol_settings` / :func:`probing_settings` return them,
-or the defaults when a scene has no such section.
+Both are frozen dataclasses validated by :class:`dem_taichi.sections.SceneSection` (type, range,
+choices; the message names the key and what is allowed); the scene loader
+(:mod:`dem_taichi.config`) knows them, so a scene carrying them loads from anywhere. The loaded
+instances are ``scene.extensions["protocol"]`` and ``scene.extensions["probing"]``;
+:func:`protocol_settings` / :func:`probing_settings` return them, or the defaults when a scene
+has no such section.
 
 Units: DEM units (d = 1, disc mass = 1); stresses in force/length, compression positive; strains
 logarithmic, compression positive. ``stress_scale_kpa`` states what one DEM stress unit means in
@@ -20,7 +20,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from dem_taichi.config import SceneError, SceneSection, register_section
+from dem_taichi.sections import SceneError, SceneSection
+from dem_taichi.sections import field_choices as _choices
+from dem_taichi.sections import field_range as _range
 
 __all__ = [
     "ProtocolConfig",
@@ -29,14 +31,6 @@ __all__ = [
     "probing_settings",
     "parse_number_list",
 ]
-
-
-def _range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
-    return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
-
-
-def _choices(*values, doc=""):
-    return {"choices": tuple(values), "doc": doc}
 
 
 def parse_number_list(text: str, key: str) -> tuple[float, ...]:
@@ -281,10 +275,6 @@ class ProbingConfig(SceneSection):
         if n == 1:
             return (self.amplitude_min,)
         return tuple(10 ** (lo + (hi - lo) * k / (n - 1)) for k in range(n))
-
-
-register_section("protocol", ProtocolConfig)
-register_section("probing", ProbingConfig)
 
 
 def protocol_settings(scene) -> ProtocolConfig:

@@ -71,3 +71,95 @@ def test_import_does_not_load_taichi(package):
 def test_import_dem_taichi_does_not_init_taichi():
     code = "import sys, dem_taichi\nassert 'taichi' not in sys.modules\n"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
+def test_engine_and_protocol_import_without_taichi():
+    """For type use (annotations, isinstance) the engine and the protocol load without Taichi;
+    it is imported when a simulation is built."""
+    code = "import sys, dem_taichi.engine, dem_taichi.protocol, dem_taichi.probing\n"
+    code += "assert 'taichi' not in sys.modules, 'taichi was imported'\n"
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
+def module_imports(package: str) -> dict[str, set[str]]:
+    """Map each module of ``package`` (dotted name) to the modules of ``package`` it imports.
+
+    Every import counts: top level, inside functions and under ``TYPE_CHECKING`` (a lazy import
+    hides a loop from Python, not from a reader). ``from a import b`` is an import of ``a.b``
+    when that is a module, else of ``a``; relative imports are resolved.
+    """
+    files = {}
+    for path in sorted((ROOT / package).rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        files[".".join(parts)] = path
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        is_package = path.name == "__init__.py"
+        edges: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    here = name.split(".") if is_package else name.split(".")[:-1]
+                    anchor = here[: len(here) - (node.level - 1)]
+                    base = ".".join(anchor + ([base] if base else []))
+                targets = [
+                    f"{base}.{alias.name}" if f"{base}.{alias.name}" in files else base
+                    for alias in node.names
+                ]
+            else:
+                continue
+            edges.update(t for t in targets if t in files and t != name)
+        graph[name] = edges
+    return graph
+
+
+def import_loops(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    loops: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in sorted(graph[node]):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                loops.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return sorted(loops)
+
+
+def test_import_loop_detector_finds_a_loop():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert import_loops(graph) == [["a", "b", "c"]]
+    assert import_loops({"a": {"b"}, "b": set()}) == []
+
+
+@pytest.mark.parametrize("package", ["dem_taichi", "tiv_model", "bridge"])
+def test_no_import_loops(package):
+    """No module of the package imports, even lazily, one that imports it back."""
+    assert import_loops(module_imports(package)) == []

@@ -1,0 +1,86 @@
+"""Validated frozen scene sections: :class:`SceneSection` and :class:`SceneError`.
+
+The base of every section dataclass of a scene (:mod:`dem_taichi.config` for the engine's,
+:mod:`dem_taichi.protocol_config` for the virtual experiments'): each field carries its allowed
+range or choices in ``metadata`` (:func:`field_range`, :func:`field_choices`), checked after
+construction, and an invalid value raises a :class:`SceneError` naming the key and what is
+allowed. It imports nothing of the package, so every section module can build on it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+__all__ = ["SceneError", "SceneSection", "field_range", "field_choices"]
+
+
+class SceneError(ValueError):
+    """An invalid scene: the message names the offending key and what is allowed."""
+
+
+def field_range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
+    """``metadata`` of a numeric field allowed in [lo, hi] (``None``: unbounded; ``*_open``:
+    the bound excluded)."""
+    return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
+
+
+def field_choices(*values, doc=""):
+    """``metadata`` of a field allowed to take one of ``values``."""
+    return {"choices": tuple(values), "doc": doc}
+
+
+def _describe_range(meta) -> str:
+    lo, hi, lo_open, hi_open = meta["range"]
+    left = "(" if lo_open else "["
+    right = ")" if (hi_open or hi is None) else "]"
+    return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}"
+
+
+class SceneSection:
+    """Base of every section dataclass: validates field values after construction."""
+
+    SECTION = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            key = f"[{self.SECTION}] {f.name}"
+            if value is None:
+                if f.metadata.get("optional"):
+                    continue
+                raise SceneError(f"{key} is required")
+            kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+            kind = kind.replace(" | None", "")
+            if kind == "bool":
+                if not isinstance(value, bool):
+                    raise SceneError(f"{key} = {value!r}: must be true or false")
+            elif kind == "int":
+                if isinstance(value, bool) or not isinstance(value, int):
+                    raise SceneError(f"{key} = {value!r}: must be an integer")
+            elif kind == "float":
+                if isinstance(value, bool) or not isinstance(value, int | float):
+                    raise SceneError(f"{key} = {value!r}: must be a number")
+                if not math.isfinite(value):
+                    raise SceneError(f"{key} = {value!r}: must be finite")
+                object.__setattr__(self, f.name, float(value))
+                value = float(value)
+            elif kind == "str":
+                if not isinstance(value, str):
+                    raise SceneError(f"{key} = {value!r}: must be a string")
+            if "range" in f.metadata:
+                lo, hi, lo_open, hi_open = f.metadata["range"]
+                bad = (lo is not None and (value < lo or (lo_open and value == lo))) or (
+                    hi is not None and (value > hi or (hi_open and value == hi))
+                )
+                if bad:
+                    raise SceneError(
+                        f"{key} = {value!r} is out of range: allowed {_describe_range(f.metadata)}"
+                    )
+            if "choices" in f.metadata and value not in f.metadata["choices"]:
+                allowed = " | ".join(str(c) for c in f.metadata["choices"])
+                raise SceneError(f"{key} = {value!r}: allowed values are {allowed}")
+        self.check()
+
+    def check(self) -> None:
+        """Cross-field checks of the section (override)."""
