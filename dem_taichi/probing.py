@@ -250,7 +250,7 @@ def probe_state(
 
 
 class ProbeRecorder:
-    """Probe hook of :class:`dem_taichi.protocol.ProtocolRunner`: probes and keeps the results.
+    """Probe hook of :class:`dem_taichi.paths.ProtocolRunner`: probes and keeps the results.
 
     Times are kept in total, per method and per stage (the protocol subtracts them from the
     stage wall times, so stage times and probing time add up).

@@ -111,7 +111,7 @@ class ProtocolConfig(SceneSection):
       measured secant/elastic ratio since loading began in the current direction, in
       [``servo_softening_min``, 1], estimated once the elastic prediction of the stress change
       exceeds ``servo_near_target`` of the target, reset to 1 when the residual changes sign
-      (:class:`dem_taichi.protocol.SecantStiffness`); the loading then runs near the
+      (:class:`dem_taichi.servo.SecantStiffness`); the loading then runs near the
       inertial-number cap. The paper scene uses "secant"; the default stays "elastic" (the
       validation runs of the default scene were made with it).
     - ``servo_softening_min`` [0.01]: smallest s of the secant servo.
