@@ -747,13 +747,13 @@ class Simulation:
         counts = self.a["nbr_count"].to_numpy()
         bits = self.a["pair_flags"].to_numpy()
         slots = np.arange(self.capacity)[None, :] < counts[:, None]
-        i, k = np.nonzero(slots & (bits & 8 != 0))
+        i, k = np.nonzero(slots & (bits & L.PAIR_INTERACTING != 0))
         packed = self.a["nbr"].to_numpy()[i, k]
         return i, k, packed, bits[i, k]
 
     def _mechanical_coordination(self, n_contacts: int) -> float:
         i, _, packed, bits = self._contact_pairs()
-        touching = (bits & 1) != 0
+        touching = (bits & L.PAIR_CONTACT) != 0
         ns = self.geometry.n_spheres
         rod_i = (i[touching] // ns).astype(np.int64)
         rod_j = (packed[touching] // L.IMAGE_CODES // ns).astype(np.int64)
@@ -847,7 +847,7 @@ class Simulation:
         i, k, packed, bits = self._contact_pairs()
         j = packed // L.IMAGE_CODES
         code = packed % L.IMAGE_CODES
-        image = np.stack([code // 5 - 2, code % 5 - 2], axis=1).astype(float)
+        image = np.stack(L.image_of_code(code), axis=1).astype(float)
         lengths = self.cell_lengths
         disc_x = self.a["disc_x"].to_numpy().astype(float)
         r_ij = disc_x[i] - disc_x[j] - image * lengths
@@ -863,7 +863,7 @@ class Simulation:
         normal = r_ij / np.linalg.norm(r_ij, axis=1)[:, None]
         tangent = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
         xi = self.a["nbr_xi"].to_numpy().astype(float)[i, k]
-        touching = (bits & 1) != 0
+        touching = (bits & L.PAIR_CONTACT) != 0
         xi = np.where(touching, xi, 0.0)
         charge, f_max, k_a = species_parameters(self.scene)
         sc = self.scene
@@ -887,7 +887,7 @@ class Simulation:
             pair_j=j.astype(np.int64),
             pair_shift=shift,
             tangential_spring=xi[:, None] * tangent,
-            sliding=(bits & 4) != 0,
+            sliding=(bits & L.PAIR_SLIDING) != 0,
         )
 
     # ------------------------------------------------------------------------------------------
@@ -991,7 +991,7 @@ class Simulation:
                         rows[i].append((entry, xi))
                 else:
                     rows[i].append((entry, xi))
-                    mirrored = (4 - code // 5) * 5 + (4 - code % 5)
+                    mirrored = L.mirrored_image_code(code)
                     rows[j].append((i * L.IMAGE_CODES + mirrored, xi))
         capacity = max(max((len(r) for r in rows), default=1), self.capacity)
         new_entries = np.zeros((len(counts), capacity), dtype=entries.dtype)

@@ -4,6 +4,8 @@
 ``cell`` (real): cell lengths, lengths at the last list build, time, list-displacement trackers.
 ``flags`` (int32): control and error flags set by kernels and read by the host.
 ``measures`` (real): sums accumulated by the measure kernel.
+Neighbour entries pack disc j with its periodic image (``IMAGE_*``, helpers for numpy code);
+``pair_flags`` holds the ``PAIR_*`` bits of every list entry.
 """
 
 # params ---------------------------------------------------------------------------------------
@@ -73,5 +75,32 @@ M_STIFF_XX = 14  # Σ_contacts k_n (n_x b_x)²: affine stiffness dσ_xx/dε_xx t
 M_STIFF_YY = 15  # Σ_contacts k_n (n_y b_y)²
 N_MEASURES = 16
 
-# neighbour entry packing: entry = j * 25 + (m_x + 2) * 5 + (m_y + 2), with image m in [-2, 2]
-IMAGE_CODES = 25
+# neighbour entries ----------------------------------------------------------------------------
+# entry = j * IMAGE_CODES + code, code = (m_x + IMAGE_RANGE) * IMAGE_SIDE + (m_y + IMAGE_RANGE),
+# with (m_x, m_y) the periodic image of disc j: r_ij = x_i − x_j − (m_x L_x, m_y L_y)
+IMAGE_RANGE = 2  # image indices m in [−IMAGE_RANGE, IMAGE_RANGE]
+IMAGE_SIDE = 2 * IMAGE_RANGE + 1  # 5
+IMAGE_CODES = IMAGE_SIDE * IMAGE_SIDE  # 25
+
+
+def image_code(m_x, m_y):
+    """Code of the image (m_x, m_y) (ints or integer arrays)."""
+    return (m_x + IMAGE_RANGE) * IMAGE_SIDE + (m_y + IMAGE_RANGE)
+
+
+def image_of_code(code):
+    """(m_x, m_y) of an image code (ints or integer arrays)."""
+    return code // IMAGE_SIDE - IMAGE_RANGE, code % IMAGE_SIDE - IMAGE_RANGE
+
+
+def mirrored_image_code(code):
+    """Code of the opposite image (−m_x, −m_y): the entry of the pair seen from disc j."""
+    m_x, m_y = image_of_code(code)
+    return image_code(-m_x, -m_y)
+
+
+# pair_flags bits (written by the measure kernel for every list entry) --------------------------
+PAIR_CONTACT = 1  # the discs overlap (δ > 0)
+PAIR_LONG_RANGE = 2  # a non-zero long-range or van der Waals force
+PAIR_SLIDING = 4  # a contact at the Coulomb cap
+PAIR_INTERACTING = 8  # any of the above

@@ -13,7 +13,7 @@ State (N rods of n_s discs, M = N n_s discs, K list capacity per disc):
   force (N,2), torque (N,)  total pair forces/torques at the current positions
   ref_pos, ref_angle        positions at the last list build
   disc_x (M,2)     absolute disc positions X + o_s a; disc_off (M,2) = o_s a
-  nbr (M,K) int32  half list: entries j*25 + image code for j > i, |r_ij| < r_list at build
+  nbr (M,K) int32  half list: entries j*IMAGE_CODES + image code for j > i, |r_ij| < r_list at build
   nbr_xi (M,K)     tangential spring ξ (scalar along t = (−n_y, n_x)) of each entry
   old_* buffers    the previous list, read to carry ξ across rebuilds
 
@@ -48,6 +48,8 @@ from dem_taichi.kernels.layout import (
     F_STEPS,
     F_STOP,
     IMAGE_CODES,
+    IMAGE_RANGE,
+    IMAGE_SIDE,
     M_CONTACTS,
     M_INTERACTING,
     M_KE_ROT,
@@ -84,6 +86,10 @@ from dem_taichi.kernels.layout import (
     P_SKIN,
     P_VDW_F,
     P_VDW_K,
+    PAIR_CONTACT,
+    PAIR_INTERACTING,
+    PAIR_LONG_RANGE,
+    PAIR_SLIDING,
 )
 
 nd = ti.types.ndarray()
@@ -233,7 +239,9 @@ def rebuild_lists(
                         dy -= my * ly
                         if dx * dx + dy * dy < r_list2:
                             if count < capacity:
-                                code = (ti.cast(mx, ti.i32) + 2) * 5 + (ti.cast(my, ti.i32) + 2)
+                                code = (ti.cast(mx, ti.i32) + IMAGE_RANGE) * IMAGE_SIDE + (
+                                    ti.cast(my, ti.i32) + IMAGE_RANGE
+                                )
                                 nbr[i, count] = j * IMAGE_CODES + code
                                 xi_old = 0.0
                                 for k in range(old_count[i]):
@@ -302,8 +310,8 @@ def pair_interaction(
     packed = nbr[i, k]
     j = packed // IMAGE_CODES
     code = packed % IMAGE_CODES
-    mx = 1.0 * (code // 5 - 2)
-    my = 1.0 * (code % 5 - 2)
+    mx = 1.0 * (code // IMAGE_SIDE - IMAGE_RANGE)
+    my = 1.0 * (code % IMAGE_SIDE - IMAGE_RANGE)
     dx = disc_x[i, 0] - disc_x[j, 0] - mx * lx
     dy = disc_x[i, 1] - disc_x[j, 1] - my * ly
     dist2 = dx * dx + dy * dy
@@ -958,7 +966,7 @@ def measure_sums(
     """Serial sums for the measures (deterministic order); also per-entry pair data.
 
     pair_out (M,K,4): F_x, F_y, f_contact_normal, f_tangential of each list entry;
-    pair_flags (M,K): bit 0 contact, bit 1 long-range active, bit 2 sliding, bit 3 interacting.
+    pair_flags (M,K): bits PAIR_CONTACT, PAIR_LONG_RANGE, PAIR_SLIDING, PAIR_INTERACTING (layout).
     """
     n_rods = vel.shape[0]
     n_discs = n_rods * ns
@@ -1015,7 +1023,7 @@ def measure_sums(
                     measures[M_U_CONTACT] += uc
                     measures[M_U_LONG] += ul
                     if delta > 0.0:
-                        bits |= 1
+                        bits |= PAIR_CONTACT
                         measures[M_CONTACTS] += 1.0
                         # affine stiffness of the contact network (for the stress servo)
                         rx = bx + disc_off[i, 0] - disc_off[j, 0]
@@ -1027,13 +1035,13 @@ def measure_sums(
                         rod_contacts[j // ns] += 1
                         if ti.static(phys.friction):
                             if ti.abs(ft) >= params[P_MU] * ti.abs(fc) * (1.0 - 1e-6):
-                                bits |= 4
+                                bits |= PAIR_SLIDING
                                 measures[M_SLIDING] += 1.0
                     if la == 1:
-                        bits |= 2
+                        bits |= PAIR_LONG_RANGE
                         measures[M_LONG_PAIRS] += 1.0
                     if bits != 0:
-                        bits |= 8
+                        bits |= PAIR_INTERACTING
                         measures[M_INTERACTING] += 1.0
                         measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
                 pair_out[i, k, 0] = fx
