@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 
 from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
+from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
 from dem_taichi.kernels import layout as L
 from dem_taichi.runtime import ensure_runtime
 from dem_taichi.scene import GasState, generate_gas, rod_geometry, species_parameters
@@ -139,35 +140,6 @@ _PARAMETER_INDEX = {
     "mu": L.P_MU,
     "local_damping": L.P_ALPHA,
 }
-
-_ARRAY_NAMES = (
-    "pos",
-    "angle",
-    "vel",
-    "omega",
-    "force",
-    "torque",
-    "ref_pos",
-    "ref_angle",
-    "offsets",
-    "disc_x",
-    "disc_off",
-    "nbr",
-    "nbr_xi",
-    "nbr_count",
-    "old_nbr",
-    "old_xi",
-    "old_count",
-    "cell_count",
-    "cell_start",
-    "cell_items",
-    "disc_cell",
-    "charge",
-    "pair_table",
-    "cell",
-    "params",
-    "flags",
-)
 
 
 def _pair_table(scene: Scene) -> np.ndarray:
@@ -266,37 +238,12 @@ class Simulation:
         nd = ti.ndarray
         self.capacity = int(capacity)
         cells_axis = int(max(cell_lengths) / self.list_radius) + 2
+        self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
+        self._sizes["cells"] = cells_axis
+        self._dtypes = {"real": real, "i32": ti.i32}
         self.a: dict[str, Any] = {
-            "pos": nd(real, (n, 2)),
-            "angle": nd(real, (n,)),
-            "vel": nd(real, (n, 2)),
-            "omega": nd(real, (n,)),
-            "force": nd(real, (n, 2)),
-            "torque": nd(real, (n,)),
-            "ref_pos": nd(real, (n, 2)),
-            "ref_angle": nd(real, (n,)),
-            "offsets": nd(real, (ns,)),
-            "disc_x": nd(real, (m, 2)),
-            "disc_off": nd(real, (m, 2)),
-            "nbr": nd(ti.i32, (m, self.capacity)),
-            "nbr_xi": nd(real, (m, self.capacity)),
-            "nbr_count": nd(ti.i32, (m,)),
-            "old_nbr": nd(ti.i32, (m, self.capacity)),
-            "old_xi": nd(real, (m, self.capacity)),
-            "old_count": nd(ti.i32, (m,)),
-            "cell_count": nd(ti.i32, (cells_axis, cells_axis)),
-            "cell_start": nd(ti.i32, (cells_axis, cells_axis)),
-            "cell_items": nd(ti.i32, (m,)),
-            "disc_cell": nd(ti.i32, (m,)),
-            "charge": nd(ti.i32, (ns,)),
-            "pair_table": nd(real, (ns, ns, 3)),
-            "cell": nd(real, (L.N_CELL,)),
-            "params": nd(real, (L.N_PARAMS,)),
-            "flags": nd(ti.i32, (L.N_FLAGS,)),
-            "measures": nd(real, (L.N_MEASURES,)),
-            "rod_contacts": nd(ti.i32, (n,)),
-            "pair_out": nd(real, (m, self.capacity, 4)),
-            "pair_flags": nd(ti.i32, (m, self.capacity)),
+            spec.name: nd(self._dtypes[spec.dtype], spec.shape_for(self._sizes))
+            for spec in DEVICE_ARRAYS
         }
         self.a["offsets"].from_numpy(self.geometry.offsets.astype(self._real))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
@@ -359,8 +306,11 @@ class Simulation:
                 "[integration] skin"
             )
 
-    def _args(self) -> list:
-        return [self.a[name] for name in _ARRAY_NAMES]
+    def _launch(self, kernel, **scalars) -> None:
+        """Call ``kernel`` with its compile-time and scalar arguments (``scalars``, by name) and
+        every device array its other parameters name (:data:`DEVICE_ARRAYS`)."""
+        a = self.a
+        kernel(*[scalars[n] if n in scalars else a[n] for n in kernel_parameters(kernel)])
 
     def recompute_forces(self) -> None:
         """Recompute forces/torques from the current positions, velocities and springs (ξ kept)."""
@@ -370,7 +320,9 @@ class Simulation:
         from dem_taichi.kernels.step import prime_forces
 
         for _ in range(8):
-            prime_forces(self.geometry.n_spheres, self.full_list, self.physics, *self._args())
+            self._launch(
+                prime_forces, ns=self.geometry.n_spheres, full=self.full_list, phys=self.physics
+            )
             if not self._handle_flags(0):
                 return
         raise CapacityError("could not build the neighbour list")  # pragma: no cover
@@ -402,22 +354,20 @@ class Simulation:
                 "list radius is unphysical; reduce [integration] skin or the long-range range "
                 "(f_max / k_a)"
             )
-        real = self.runtime.real
-        m = self.n_discs
-        for name, dtype in (
-            ("nbr", ti.i32),
-            ("nbr_xi", real),
-            ("old_nbr", ti.i32),
-            ("old_xi", real),
-        ):
-            old = self.a[name].to_numpy()
-            new = np.zeros((m, capacity), dtype=old.dtype)
-            keep = min(capacity, old.shape[1])
-            new[:, :keep] = old[:, :keep]
-            self.a[name] = ti.ndarray(dtype, (m, capacity))
-            self.a[name].from_numpy(new)
-        self.a["pair_out"] = ti.ndarray(real, (m, capacity, 4))
-        self.a["pair_flags"] = ti.ndarray(ti.i32, (m, capacity))
+        sizes = dict(self._sizes, capacity=capacity)
+        for spec in DEVICE_ARRAYS:
+            if not spec.grows:
+                continue
+            shape = spec.shape_for(sizes)
+            grown = ti.ndarray(self._dtypes[spec.dtype], shape)
+            if spec.copy_on_growth:
+                old = self.a[spec.name].to_numpy()
+                new = np.zeros(shape, dtype=old.dtype)
+                keep = min(capacity, old.shape[1])
+                new[:, :keep] = old[:, :keep]
+                grown.from_numpy(new)
+            self.a[spec.name] = grown
+        self._sizes = sizes
         self.capacity = capacity
 
     def _raise_blowup(self, flags: np.ndarray, step_offset: int) -> None:
@@ -471,82 +421,17 @@ class Simulation:
             self.a["flags"].from_numpy(flags)
             todo = n_steps - done
             t0 = _time.perf_counter()
+            ns = self.geometry.n_spheres
             if self.execution == "serial":
-                K.run_steps_serial(self.geometry.n_spheres, self.physics, todo, *self._args())
+                self._launch(K.run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
-                a = self.a
-                rebuild_args = [
-                    a[n]
-                    for n in (
-                        "pos",
-                        "angle",
-                        "ref_pos",
-                        "ref_angle",
-                        "offsets",
-                        "disc_x",
-                        "disc_off",
-                        "nbr",
-                        "nbr_xi",
-                        "nbr_count",
-                        "old_nbr",
-                        "old_xi",
-                        "old_count",
-                        "cell_count",
-                        "cell_start",
-                        "cell_items",
-                        "disc_cell",
-                        "cell",
-                        "params",
-                        "flags",
-                    )
-                ]
-                kick_args = [
-                    a[n]
-                    for n in (
-                        "pos",
-                        "angle",
-                        "vel",
-                        "omega",
-                        "force",
-                        "torque",
-                        "ref_pos",
-                        "ref_angle",
-                        "offsets",
-                        "disc_x",
-                        "disc_off",
-                        "cell",
-                        "params",
-                        "flags",
-                    )
-                ]
-                force_args = [
-                    a[n]
-                    for n in (
-                        "vel",
-                        "omega",
-                        "force",
-                        "torque",
-                        "disc_x",
-                        "disc_off",
-                        "offsets",
-                        "nbr",
-                        "nbr_xi",
-                        "nbr_count",
-                        "charge",
-                        "pair_table",
-                        "cell",
-                        "params",
-                        "flags",
-                    )
-                ]
-                ns = self.geometry.n_spheres
                 for _ in range(todo):
-                    K.rebuild_if_needed(ns, self.full_list, *rebuild_args)
-                    K.kick_drift_parallel(ns, *kick_args)
+                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list)
+                    self._launch(K.kick_drift_parallel, ns=ns)
                     if self.full_list:
-                        K.forces_gather(ns, self.physics, *force_args)
+                        self._launch(K.forces_gather, ns=ns, phys=self.physics)
                     else:
-                        K.forces_parallel(ns, self.physics, *force_args, 1)
+                        self._launch(K.forces_parallel, ns=ns, phys=self.physics, count_step=1)
             steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
             self.timings["kernel"] += _time.perf_counter() - t0
             grown = self._handle_flags(done)
@@ -692,31 +577,10 @@ class Simulation:
         from dem_taichi.kernels.step import measure_sums
 
         t0 = _time.perf_counter()
-        a = self.a
-        measure_sums(
-            self.geometry.n_spheres,
-            self.full_list,
-            self.physics,
-            a["vel"],
-            a["omega"],
-            a["force"],
-            a["torque"],
-            a["disc_x"],
-            a["disc_off"],
-            a["offsets"],
-            a["nbr"],
-            a["nbr_xi"],
-            a["nbr_count"],
-            a["charge"],
-            a["pair_table"],
-            a["cell"],
-            a["params"],
-            a["measures"],
-            a["rod_contacts"],
-            a["pair_out"],
-            a["pair_flags"],
+        self._launch(
+            measure_sums, ns=self.geometry.n_spheres, full=self.full_list, phys=self.physics
         )
-        sums = a["measures"].to_numpy().astype(float)
+        sums = self.a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
         return sums
 
@@ -894,23 +758,8 @@ class Simulation:
     # state, parameters, checkpoints
     def get_state(self) -> dict[str, np.ndarray]:
         """Numpy copies of the full state (see :mod:`dem_taichi.state`)."""
-        a = self.a
-        params = a["params"].to_numpy()
-        return {
-            "reduced_position": a["pos"].to_numpy(),
-            "angle": a["angle"].to_numpy(),
-            "velocity": a["vel"].to_numpy(),
-            "angular_velocity": a["omega"].to_numpy(),
-            "force": a["force"].to_numpy(),
-            "torque": a["torque"].to_numpy(),
-            "ref_position": a["ref_pos"].to_numpy(),
-            "ref_angle": a["ref_angle"].to_numpy(),
-            "neighbours": a["nbr"].to_numpy(),
-            "tangential_spring": a["nbr_xi"].to_numpy(),
-            "neighbour_count": a["nbr_count"].to_numpy(),
-            "cell": a["cell"].to_numpy(),
-            "flags": a["flags"].to_numpy(),
-            "params": params,
+        state = {spec.state_key: self.a[spec.name].to_numpy() for spec in STATE_ARRAYS}
+        return state | {
             "reference_lengths": self.reference_lengths.copy(),
             "step": np.array(self.step, dtype=np.int64),
             "full_list": np.array(self.full_list),
@@ -933,23 +782,8 @@ class Simulation:
         if capacity != self.capacity:
             self._grow(capacity)
         a = self.a
-        for key, name in (
-            ("reduced_position", "pos"),
-            ("angle", "angle"),
-            ("velocity", "vel"),
-            ("angular_velocity", "omega"),
-            ("force", "force"),
-            ("torque", "torque"),
-            ("ref_position", "ref_pos"),
-            ("ref_angle", "ref_angle"),
-            ("neighbours", "nbr"),
-            ("tangential_spring", "nbr_xi"),
-            ("neighbour_count", "nbr_count"),
-            ("cell", "cell"),
-            ("flags", "flags"),
-            ("params", "params"),
-        ):
-            a[name].from_numpy(np.ascontiguousarray(state[key]))
+        for spec in STATE_ARRAYS:
+            a[spec.name].from_numpy(np.ascontiguousarray(state[spec.state_key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
         self._servo = None  # the servo's stiffness memory belongs to the replaced trajectory
@@ -958,15 +792,7 @@ class Simulation:
         # disc positions are derived: recompute them from the centroids
         from dem_taichi.kernels.step import place_all_discs
 
-        place_all_discs(
-            self.geometry.n_spheres,
-            a["pos"],
-            a["angle"],
-            a["offsets"],
-            a["disc_x"],
-            a["disc_off"],
-            a["cell"],
-        )
+        self._launch(place_all_discs, ns=self.geometry.n_spheres)
 
     def _convert_list(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Convert the neighbour list of a state between the half (i < j) and full forms.

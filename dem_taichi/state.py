@@ -1,7 +1,8 @@
 """Engine state on the host: the names and meaning of the arrays of :meth:`Simulation.get_state`.
 
 The state is a plain ``dict[str, numpy.ndarray]`` (so it can be copied, compared bit for bit and
-written to a checkpoint by :mod:`dem_taichi.io.checkpoint`). Keys:
+written to a checkpoint by :mod:`dem_taichi.io.checkpoint`); its arrays are those of role
+``state`` in :data:`dem_taichi.device_arrays.DEVICE_ARRAYS`. Keys:
 
 =================  ==============  ===========================================================
 key                shape / dtype   meaning
@@ -13,7 +14,7 @@ angular_velocity   (N,) real       ω at the half step
 force, torque      (N, 2), (N,)    total pair force/torque at the current positions
 ref_position       (N, 2) real     reduced centroids at the last neighbour-list build
 ref_angle          (N,) real       angles at the last build
-neighbours         (M, K) int32    half Verlet list entries j·25 + image code
+neighbours         (M, K) int32    half Verlet list entries j·25 + image code (kernels/layout.py)
 tangential_spring  (M, K) real     ξ of each entry (scalar along t = (−n_y, n_x))
 neighbour_count    (M,) int32      used entries per disc
 cell               (8,) real       L_x, L_y, lengths at the last build, time, trackers
@@ -35,25 +36,11 @@ from __future__ import annotations
 
 import numpy as np
 
-STATE_KEYS = (
-    "reduced_position",
-    "angle",
-    "velocity",
-    "angular_velocity",
-    "force",
-    "torque",
-    "ref_position",
-    "ref_angle",
-    "neighbours",
-    "tangential_spring",
-    "neighbour_count",
-    "cell",
-    "flags",
-    "params",
-    "reference_lengths",
-    "step",
-    "full_list",
-)
+from dem_taichi.device_arrays import HOST_STATE_KEYS, STATE_ARRAYS
+
+#: Keys of the state dict: the state arrays of :data:`dem_taichi.device_arrays.DEVICE_ARRAYS`,
+#: then the host values.
+STATE_KEYS = tuple(spec.state_key for spec in STATE_ARRAYS) + HOST_STATE_KEYS
 
 
 def copy_state(state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -1,0 +1,48 @@
+"""The table of device arrays: every kernel's array parameter is declared in it, once."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, DeviceArray, kernel_parameters
+from dem_taichi.state import STATE_KEYS
+
+#: Compile-time and scalar kernel parameters the engine passes by name.
+SCALARS = {"ns", "full", "phys", "n_steps", "count_step"}
+
+
+def test_names_and_state_keys_are_unique():
+    names = [a.name for a in DEVICE_ARRAYS]
+    assert len(names) == len(set(names))
+    keys = [a.state_key for a in STATE_ARRAYS]
+    assert len(keys) == len(set(keys))
+    assert STATE_KEYS[: len(keys)] == tuple(keys)
+
+
+def test_shapes_follow_the_sizes():
+    sizes = {"rods": 3, "discs": 15, "spheres": 5, "capacity": 7, "cells": 4}
+    shapes = {a.name: a.shape_for(sizes) for a in DEVICE_ARRAYS}
+    assert shapes["pos"] == (3, 2) and shapes["nbr"] == (15, 7) and shapes["pair_out"] == (15, 7, 4)
+    assert shapes["cell_count"] == (4, 4) and shapes["pair_table"] == (5, 5, 3)
+    grown = {a.name for a in DEVICE_ARRAYS if a.grows}
+    assert grown == {"nbr", "nbr_xi", "old_nbr", "old_xi", "pair_out", "pair_flags"}
+    with pytest.raises(ValueError, match="state key"):
+        DeviceArray("x", "real", ("rods",), "state")
+
+
+def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
+    pytest.importorskip("taichi")
+    from dem_taichi.kernels import step
+
+    kernels = [
+        obj
+        for _, obj in inspect.getmembers(step, inspect.isfunction)
+        if obj.__module__ == step.__name__ and hasattr(obj, "_primal")
+    ]
+    assert len(kernels) >= 8
+    declared = {a.name for a in DEVICE_ARRAYS}
+    for kernel in kernels:
+        unknown = set(kernel_parameters(kernel)) - declared - SCALARS
+        assert not unknown, (kernel.__name__, unknown)
