@@ -98,14 +98,16 @@ def time_case(scene, arch, execution, deterministic, state, n_steps):
 
 def profile_serial(sim, repeats=200):
     """Per-step cost of the parts of the serial step, timed with the priming kernel."""
+    from dem_taichi.device_arrays import kernel_parameters
     from dem_taichi.kernels.step import prime_forces
 
     state = sim.get_state()
-    args = sim._args()
-    prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
+    scalars = {"ns": sim.geometry.n_spheres, "full": False, "phys": sim.physics}
+    args = [scalars[n] if n in scalars else sim.a[n] for n in kernel_parameters(prime_forces)]
+    prime_forces(*args)
     t0 = time.perf_counter()
     for _ in range(repeats):
-        prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
+        prime_forces(*args)
     sim.a["flags"].to_numpy()
     force = (time.perf_counter() - t0) / repeats
     flags = sim.a["flags"]
@@ -114,7 +116,7 @@ def profile_serial(sim, repeats=200):
         f = flags.to_numpy()
         f[layout.F_FORCE_REBUILD] = 1
         flags.from_numpy(f)
-        prime_forces(sim.geometry.n_spheres, False, sim.physics, *args)
+        prime_forces(*args)
     sim.a["flags"].to_numpy()
     rebuild_and_force = (time.perf_counter() - t0) / (repeats // 4)
     sim.set_state(state)
