@@ -495,30 +495,19 @@ AGG_TABLES = [
 ]
 
 
-def markdown(rows: list[dict]) -> str:
+def _aggregate(rows: list[dict], title: str) -> list[str]:
+    """Per-variant mean ± interval tables and the paired differences to ``base``."""
     by_variant: dict[str, list[dict]] = {}
     for r in rows:
         by_variant.setdefault(r["variant"], []).append(r)
     lines = [
-        "# Stiffness anisotropy on full loading paths: variants of the default scene (issue 8)",
         "",
-        "Written by `benchmarks/full_path_variants.py` from the finished runs under "
-        f"`{ROOT}` ({len(rows)} runs). Scene: `dem_taichi/scenes/default.toml` (300 rods × 5 "
-        'discs, acidic) with `servo_stiffness = "secant"`, linear-response probes at every '
-        "relaxed increment (no dynamic sweep); seeds "
-        f"{', '.join(str(x) for x in sorted({r['seed'] for r in rows}))}. Moduli are the "
-        "linear-response constrained moduli (stuck contacts). Fabric = rod β_yy − β_xx "
-        "(negative: rods lie horizontal). Stresses in kPa (1 DEM unit = 1 kPa).",
-        "",
-        STUDY,
-        "",
-        "## Per variant: mean ± 95 % interval over seeds (Student t, n − 1 dof; no interval "
-        "for n = 1)",
+        f"## {title}: mean ± 95 % interval over seeds (Student t, n − 1 dof; none for n = 1)",
     ]
-    for title, columns in AGG_TABLES:
+    for table, columns in AGG_TABLES:
         lines += [
             "",
-            f"### {title}",
+            f"### {table}",
             "",
             "| variant | change | n | "
             + " | ".join(c[1] for c in columns)
@@ -540,7 +529,7 @@ def markdown(rows: list[dict]) -> str:
     base = {r["seed"]: r for r in by_variant.get("base", [])}
     lines += [
         "",
-        "## Paired differences to `base` (same seed: the seed's packing noise cancels in part)",
+        f"### {title}: paired differences to `base` (same seed: part of the packing noise cancels)",
         "",
         "| variant | seeds | Δ E_h/E_v at C | Δ E_h/E_v at B′ | Δ fabric at C | Δ v at C | "
         "Δ λ* A→B | ratio of E_v at B to base |",
@@ -564,6 +553,58 @@ def markdown(rows: list[dict]) -> str:
             + " | ".join(cells)
             + " |"
         )
+    return lines
+
+
+def _fabric_regression(rows: list[dict]) -> list[str]:
+    """E_h/E_v at C and B′ against the rod fabric there, across runs (least squares)."""
+    lines = [
+        "",
+        "## E_h/E_v against the rod fabric across runs (least squares, each run one point)",
+        "",
+        "A slope b < 0 means runs whose rods lie flatter (more negative β_yy − β_xx) are stiffer "
+        "horizontally. Fabric-induced anisotropy shows at B′ (q = 0); at C the stress-induced "
+        "part adds to it.",
+        "",
+        "| runs | state | N | E_h/E_v = a + b · fabric: a | b (95 %) | R² |",
+        "|---|---|---|---|---|---|",
+    ]
+    groups = [("all", rows), *[(v, [r for r in rows if r["variant"] == v]) for v in VARIANTS]]
+    for name, group in groups:
+        for state, rkey, fkey in (("C", "ratio_C", "fabric_C"), ("B′", "ratio_Bp", "fabric_Bp")):
+            x = np.array([r[fkey] for r in group], dtype=float)
+            y = np.array([r[rkey] for r in group], dtype=float)
+            ok = np.isfinite(x) & np.isfinite(y)
+            if ok.sum() < 4:
+                continue
+            fit = stats.linregress(x[ok], y[ok])
+            half = stats.t.ppf(0.975, ok.sum() - 2) * fit.stderr
+            lines.append(
+                f"| {name} | {state} | {ok.sum()} | {fit.intercept:.3f} | "
+                f"{fit.slope:+.2f} ± {half:.2f} | {fit.rvalue**2:.2f} |"
+            )
+    return lines
+
+
+def markdown(rows: list[dict]) -> str:
+    seeds = sorted({r["seed"] for r in rows})
+    lines = [
+        "# Stiffness anisotropy on full loading paths: variants of the default scene (issue 8)",
+        "",
+        "Written by `benchmarks/full_path_variants.py` from the finished runs under "
+        f"`{ROOT}` ({len(rows)} runs). Scene: `dem_taichi/scenes/default.toml` (300 rods × 5 "
+        'discs, acidic) with `servo_stiffness = "secant"`, linear-response probes at every '
+        f"relaxed increment (no dynamic sweep); seeds {', '.join(str(x) for x in seeds)}. "
+        "Moduli are the linear-response constrained moduli (stuck contacts). Fabric = rod "
+        "β_yy − β_xx (negative: rods lie horizontal). Stresses in kPa (1 DEM unit = 1 kPa).",
+        "",
+        STUDY,
+    ]
+    lines += _aggregate(rows, f"All seeds ({', '.join(str(x) for x in seeds)})")
+    lines += _fabric_regression(rows)
+    if set(seeds) - set(SEEDS):
+        core = [r for r in rows if r["seed"] in SEEDS]
+        lines += _aggregate(core, f"Seeds {', '.join(str(x) for x in SEEDS)} only")
     lines += [
         "",
         "## Every run",
