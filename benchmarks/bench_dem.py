@@ -3,9 +3,10 @@
 Cases: the paper-size scene (1520 rods of 5 discs) with contact only and with acidic long-range
 forces, serial (fused multi-step kernel) and parallel (per-step kernels) execution, the
 deterministic mode, and the growth of the cost with the number of rods (4 sizes). Each case is
-timed on a packing prepared by the engine itself: gas -> strain-controlled compression -> stress
-servo at ``--pressure`` (jammed, Z of a few), then timed during a slow strain-controlled
-compression (ε̇ = 1e-4, so the neighbour lists are rebuilt as in a real loading path).
+timed on a packing prepared by the protocol's building blocks: gas -> relaxed compression
+increments to the transition -> the protocol's stress servo at ``--pressure`` (jammed, Z of a
+few), then timed during a slow strain-controlled compression (ε̇ = 1e-4, so the neighbour
+lists are rebuilt as in a real loading path).
 
 Usage::
 
@@ -42,19 +43,39 @@ from dem_taichi.kernels import layout  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
-def prepared_state(scene, arch, pressure, max_steps):
-    """Gas -> stress servo at ``pressure`` (fast: inertial-number cap 0.05) until it holds."""
+def prepared_state(scene, arch, pressure):
+    """A jammed packing at p = ``pressure`` made by the protocol's own building blocks (fast:
+    inertial-number cap 0.05, damping 0.5, relaxed to UFR < 1e-3): gas -> relaxed isotropic
+    compression increments to the fluid-solid transition
+    (``ProtocolRunner.compress_to_transition``) -> the protocol's stress servo (secant) in
+    three log-spaced steps to σ_xx = σ_yy = ``pressure`` within 2 % (within the protocol's
+    step limits).
+    """
+    from dem_taichi.paths import ProtocolRunner
+    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+
     fast = scene.replace(
         control={"inertial_number_max": 0.05},
         integration={"local_damping": 0.5, "steps_per_call": 100},
     )
     sim = Simulation(fast, arch=arch)
-    m = {}
-    held = 0
-    while sim.step < max_steps and held < 3:
-        m = sim.run(1000, control=CellControl.stress(pressure), output_every=1000)
-        ok = abs(m["mean_stress"] / pressure - 1) < 0.02 and m["coordination_number"] > 2
-        held = held + 1 if ok else 0
+    config = ProtocolConfig(
+        target_mean_stress=pressure,
+        pressure_tolerance=0.05 * pressure,
+        min_compression_increment=0.0025,
+        transition_pressure_factor=20.0,
+        confirm_increments=0,
+        relax_unbalanced_force=1e-3,
+        relax_max_steps=20_000,
+        stress_tolerance=0.02,
+        servo_stiffness="secant",
+        save_states=False,
+    )
+    runner = ProtocolRunner(sim, config, ProbingConfig(enabled=False))
+    m = runner.compress_to_transition().measures
+    p0 = m["mean_stress"]
+    for p in p0 * (pressure / p0) ** (np.arange(1, 4) / 3):
+        m, _ = runner.servo("A_to_B", (0, 1), np.eye(2), np.array([p, p]), m)
     return sim.get_state(), m
 
 
@@ -124,7 +145,8 @@ def profile_serial(sim, repeats=200):
 
 
 def stability(args):
-    """Largest stable dt_safety: jammed packings (p = pressure) run 20 000 steps per value."""
+    """Largest stable dt_safety: jammed packings (p = pressure) run 20 000 steps at fixed cell
+    per value."""
     from dem_taichi.engine import BlowUpError
 
     rows = []
@@ -132,7 +154,7 @@ def stability(args):
         scene = load_scene("paper").replace(
             particles={"n_rods": 300}, long_range={"enabled": long_range}
         )
-        state, _ = prepared_state(scene, args.arch, args.pressure, 60_000)
+        state, _ = prepared_state(scene, args.arch, args.pressure)
         t_c = scene.contact_duration
         for safety in (0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5):
             sim = Simulation(scene, arch=args.arch)
@@ -140,7 +162,7 @@ def stability(args):
             sim.set_parameters(time_step=safety * t_c)
             outcome = "stable"
             try:
-                m = sim.run(20_000, control=CellControl.stress(args.pressure), output_every=20_000)
+                m = sim.run(20_000, control=CellControl.fixed(), output_every=20_000)
                 if abs(m["mean_stress"] / args.pressure - 1) > 0.05:
                     outcome = f"drifted p = {m['mean_stress']:.3g}"
             except BlowUpError as error:
@@ -151,7 +173,7 @@ def stability(args):
     with out.open("w", newline="") as stream:
         stream.write(
             "# bench_dem.py --stability: 300 rods of 5 discs, jammed at p = "
-            f"{args.pressure}, 20000 steps under the stress servo per dt_safety\n"
+            f"{args.pressure}, 20000 steps at fixed cell per dt_safety\n"
         )
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -180,7 +202,7 @@ def main():
         if True:
             scene = paper.replace(particles={"n_rods": n_rods}, long_range={"enabled": long_range})
             t0 = time.perf_counter()
-            state, m = prepared_state(scene, args.arch, pressure, 60_000)
+            state, m = prepared_state(scene, args.arch, pressure)
             print(
                 f"prepared {n_rods} rods (long range {long_range}) in "
                 f"{time.perf_counter() - t0:.1f} s: v = {m['specific_volume']:.3f}, "

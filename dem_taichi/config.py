@@ -15,8 +15,10 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
                     k_a_inner
 ``[van_der_waals]`` enabled, f_max, k
 ``[integration]``   dt_safety, local_damping, steps_per_call, skin, execution, blow-up limits
-``[control]``       inertial_number_max, servo_gain, compression_strain_rate,
-                    target_specific_volume, relax_steps (the engine's built-in compression run)
+``[control]``       inertial_number_max, compression_strain_rate, target_specific_volume,
+                    relax_steps (the engine's built-in compression run); ``servo_gain`` (of
+                    the engine's stress servo, removed) is accepted and dropped, so that older
+                    scenes and checkpoints still load
 ``[output]``        every, checkpoint_every
 
 Extension sections: ``[protocol]`` and ``[probing]`` (:mod:`dem_taichi.protocol_config`) are
@@ -180,7 +182,6 @@ class Integration(SceneSection):
 class Control(SceneSection):
     SECTION = "control"
     inertial_number_max: float = field(default=1.0e-3, metadata=_range(0.0, 1.0, lo_open=True))
-    servo_gain: float = field(default=1.0, metadata=_range(0.0, 10.0, lo_open=True))
     compression_strain_rate: float = field(default=1.0e-3, metadata=_range(0.0, None, lo_open=True))
     target_specific_volume: float = field(default=2.2, metadata=_range(1.0, None, lo_open=True))
     relax_steps: int = field(default=5000, metadata=_range(0))
@@ -300,9 +301,16 @@ class Scene:
         return self.replace(**sections)
 
 
+#: Keys of retired options: older scenes (and the checkpoints written from them) carry them; they
+#: are dropped at load. ``[control] servo_gain`` was the gain of the engine's stress servo
+#: (removed; the protocol's servo, ``[protocol] servo_*``, holds the stresses).
+_RETIRED_KEYS: dict[str, tuple[str, ...]] = {"control": ("servo_gain",)}
+
+
 def _load_section(cls: type, name: str, table: Any) -> Any:
     if not isinstance(table, dict):
         raise SceneError(f"[{name}] must be a table")
+    table = {k: v for k, v in table.items() if k not in _RETIRED_KEYS.get(name, ())}
     known = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - known)
     if unknown:

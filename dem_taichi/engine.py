@@ -35,12 +35,10 @@ serial path on CPU and the gather path on GPU.
 
 Cell control
 ------------
-Each axis is strain-controlled (prescribed rate, compression positive, 0 = fixed) or
-stress-controlled by a servo, evaluated every ``steps_per_call`` steps:
-ε̇ = clip(servo_gain (σ_target − σ)/(C T), −ε̇_max, ε̇_max) with C a stiffness estimate (observed
-secant, bounded by the affine stiffness of the contact network), T the chunk duration, and the
-rate cap
-ε̇_max = I_max / (d sqrt(ρ/p_ref)) from the inertial-number limit (p_ref = max(σ_target, p)).
+Each axis is strain-controlled: a prescribed logarithmic strain rate ε̇ = −L̇/L (compression
+positive, 0 = fixed), applied exactly (L = L_0 exp(−ε̇ t)). Stresses are held by the
+protocol's servo (:class:`dem_taichi.servo.StressServo`), which sets these rates from the
+measured response; the engine has no servo of its own.
 """
 
 from __future__ import annotations
@@ -89,19 +87,23 @@ class Physics:
 
 @dataclass(frozen=True)
 class AxisControl:
-    """Control of one cell axis: ``mode`` "strain_rate" (value = ε̇, compression positive) or
-    "stress" (value = σ target, compression positive, > 0)."""
+    """Control of one cell axis: ``mode`` "strain_rate", ``value`` = ε̇ (compression positive).
+
+    (The engine's own stress mode is gone: hold stresses with the protocol's servo,
+    :class:`dem_taichi.servo.StressServo`.)
+    """
 
     mode: str = "strain_rate"
     value: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.mode not in ("strain_rate", "stress"):
-            raise ValueError(f"mode = {self.mode!r}: allowed values are strain_rate | stress")
+        if self.mode != "strain_rate":
+            raise ValueError(
+                f"mode = {self.mode!r}: allowed values are strain_rate (stresses are held by "
+                "the protocol's servo, dem_taichi.servo.StressServo)"
+            )
         if not math.isfinite(self.value):
             raise ValueError(f"control value must be finite, got {self.value}")
-        if self.mode == "stress" and self.value <= 0:
-            raise ValueError(f"stress target must be > 0 (compression positive), got {self.value}")
 
 
 @dataclass(frozen=True)
@@ -123,12 +125,10 @@ class CellControl:
         rate_y = rate_x if rate_y is None else rate_y
         return cls(AxisControl("strain_rate", rate_x), AxisControl("strain_rate", rate_y), stage)
 
-    @classmethod
-    def stress(
-        cls, stress_x: float, stress_y: float | None = None, stage: str = "other"
-    ) -> CellControl:
-        stress_y = stress_x if stress_y is None else stress_y
-        return cls(AxisControl("stress", stress_x), AxisControl("stress", stress_y), stage)
+    @property
+    def rates(self) -> np.ndarray:
+        """(ε̇_xx, ε̇_yy)."""
+        return np.array([self.x.value, self.y.value], dtype=float)
 
 
 _PARAMETER_INDEX = {
@@ -199,8 +199,6 @@ class Simulation:
         self._stage = "gas"
         self._rates = np.zeros(2)
         self._control = CellControl.fixed()
-        self._last_stress: np.ndarray | None = None
-        self._servo: dict | None = None
         self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
         self.n_rebuild_calls = 0
         gas = initial if initial is not None else generate_gas(scene)
@@ -443,85 +441,6 @@ class Simulation:
                 raise RuntimeError(f"kernel stopped after {steps_done} of {todo} steps")
         self._check_kinetic_energy()
 
-    def _rates_for(self, control: CellControl) -> np.ndarray:
-        """Strain rates of the next chunk: prescribed, or from the stress servo.
-
-        Servo (per axis a): ε̇_a = clip(g (σ_target − σ_aa) / (C_a T), −ε̇_max, ε̇_max), with
-        T the duration of one chunk (steps_per_call Δt), g = [control] servo_gain,
-        ε̇_max = I_max / (d sqrt(ρ / p_ref)), p_ref = max(σ_target, p) (inertial-number cap),
-        further capped so that one chunk strains a rod-length branch by at most a tenth of the
-        overlap bound, and C_a a stiffness estimate: the observed secant dσ_aa/dε_aa of the
-        last chunk, bounded above by the affine stiffness of the contact network
-        (1/A) Σ_contacts k_n (n_a b_a)²
-        (so the correction never overshoots a stiff packing for g ≤ 1); it softens by at most a
-        factor 2 per chunk (halved while the stress does not move towards the target: floppy or
-        cohesive networks; floor 1e-4 of the affine value) and doubles on an overshoot.
-        """
-        rates = np.zeros(2)
-        if not any(a.mode == "stress" for a in (control.x, control.y)):
-            self._servo = None
-            return np.array([control.x.value, control.y.value], dtype=float)
-        sums = self._measure_sums()
-        stress = self._stress_tensor(sums)
-        lengths = self.cell_lengths
-        strain = -np.log(lengths / self.reference_lengths)
-        area = float(np.prod(lengths))
-        affine = np.array([sums[L.M_STIFF_XX], sums[L.M_STIFF_YY]]) / area
-        servo = self._servo
-        if servo is None or servo["control"] != control:
-            servo = {"control": control, "stiffness": affine.copy(), "error": np.zeros(2)}
-        else:
-            for axis in (0, 1):
-                old = servo["stiffness"][axis]
-                d_strain = strain[axis] - servo["strain"][axis]
-                d_stress = stress[axis, axis] - servo["stress"][axis]
-                error_then = servo["error"][axis]
-                error_now = servo["target"][axis] - stress[axis, axis]
-                if d_strain == 0.0 or error_then == 0.0:
-                    new = old
-                elif error_now * error_then < 0.0:
-                    # overshoot: the estimate was too soft
-                    new = max(d_stress / d_strain, 2.0 * old)
-                elif d_stress / d_strain > 0.0:
-                    # observed secant; soften by at most a factor 2 per chunk
-                    new = max(d_stress / d_strain, 0.5 * old)
-                else:
-                    # no response towards the target: floppy or cohesive network
-                    new = 0.5 * old
-                servo["stiffness"][axis] = min(max(new, 1e-4 * affine[axis]), affine[axis])
-        servo["stress"] = np.diag(stress).copy()
-        servo["strain"] = strain
-        servo["target"] = np.array(
-            [a.value if a.mode == "stress" else 0.0 for a in (control.x, control.y)]
-        )
-        servo["error"] = np.where(
-            [a.mode == "stress" for a in (control.x, control.y)],
-            servo["target"] - np.diag(stress),
-            0.0,
-        )
-        self._servo = servo
-        p = 0.5 * (stress[0, 0] + stress[1, 1])
-        rho = self.geometry.mass / self.geometry.solid_area
-        ctl = self.scene.control
-        chunk_time = self.scene.integration.steps_per_call * self.get_parameter("time_step")
-        for axis, ac in enumerate((control.x, control.y)):
-            if ac.mode == "strain_rate":
-                rates[axis] = ac.value
-                continue
-            p_ref = max(ac.value, p)
-            rate_max = ctl.inertial_number_max / (self.geometry.diameter * math.sqrt(rho / p_ref))
-            # at most a tenth of the overlap bound per chunk along a rod-length branch vector
-            max_overlap = self.scene.integration.max_overlap * self.geometry.diameter
-            rate_max = min(rate_max, 0.1 * max_overlap / (self.geometry.length * chunk_time))
-            error = ac.value - stress[axis, axis]
-            stiffness = servo["stiffness"][axis]
-            if stiffness > 0:
-                rate = ctl.servo_gain * error / (stiffness * chunk_time)
-            else:
-                rate = math.copysign(rate_max, error)
-            rates[axis] = float(np.clip(rate, -rate_max, rate_max))
-        return rates
-
     def run(
         self,
         n_steps: int,
@@ -554,7 +473,7 @@ class Simulation:
         try:
             while done < n_steps:
                 todo = min(chunk, n_steps - done, next_output - done)
-                self._set_rates(self._rates_for(control))
+                self._set_rates(control.rates)
                 self._advance(todo)
                 done += todo
                 if bar is not None:
@@ -645,7 +564,6 @@ class Simulation:
         lengths = self.cell_lengths
         area = float(np.prod(lengths))
         stress = self._stress_tensor(sums)
-        self._last_stress = stress
         p = 0.5 * (stress[0, 0] + stress[1, 1])
         q = stress[1, 1] - stress[0, 0]
         v = area / (self.n_rods * self.geometry.solid_area)
@@ -786,7 +704,6 @@ class Simulation:
             a[spec.name].from_numpy(np.ascontiguousarray(state[spec.state_key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
-        self._servo = None  # the servo's stiffness memory belongs to the replaced trajectory
         params = state["params"]
         self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
         # disc positions are derived: recompute them from the centroids

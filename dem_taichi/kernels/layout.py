@@ -71,9 +71,7 @@ M_KE_ROT = 10  # Σ ½ I ω²
 M_SUM_ROD_FORCE = 11  # Σ_r |F_r|
 M_SLIDING = 12  # number of contacts at the Coulomb cap
 M_INTERACTING = 13  # number of interacting pairs (contact or non-zero long-range force)
-M_STIFF_XX = 14  # Σ_contacts k_n (n_x b_x)²: affine stiffness dσ_xx/dε_xx times A
-M_STIFF_YY = 15  # Σ_contacts k_n (n_y b_y)²
-N_MEASURES = 16
+N_MEASURES = 14
 
 # neighbour entries ----------------------------------------------------------------------------
 # entry = j * IMAGE_CODES + code, code = (m_x + IMAGE_RANGE) * IMAGE_SIDE + (m_y + IMAGE_RANGE),

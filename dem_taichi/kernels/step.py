@@ -56,8 +56,6 @@ from dem_taichi.kernels.layout import (
     M_KE_TRANS,
     M_LONG_PAIRS,
     M_SLIDING,
-    M_STIFF_XX,
-    M_STIFF_YY,
     M_SUM_PAIR_FORCE,
     M_SUM_ROD_FORCE,
     M_SXX,
@@ -1025,12 +1023,6 @@ def measure_sums(
                     if delta > 0.0:
                         bits |= PAIR_CONTACT
                         measures[M_CONTACTS] += 1.0
-                        # affine stiffness of the contact network (for the stress servo)
-                        rx = bx + disc_off[i, 0] - disc_off[j, 0]
-                        ry = by + disc_off[i, 1] - disc_off[j, 1]
-                        r2 = rx * rx + ry * ry
-                        measures[M_STIFF_XX] += params[P_KN] * (rx * bx) ** 2 / r2
-                        measures[M_STIFF_YY] += params[P_KN] * (ry * by) ** 2 / r2
                         rod_contacts[rod_i] += 1
                         rod_contacts[j // ns] += 1
                         if ti.static(phys.friction):

@@ -177,6 +177,32 @@ def test_outputs_written_with_schema(run, tmp_path):
     assert "error" not in " ".join(run.files)
 
 
+def test_protocol_servo_holds_targets_on_the_engine(run):
+    """The protocol's servo, the only one (the engine's was removed in issue 9 and its test
+    moved here), on the engine from A: both axes to σ = 1.3 p_A, then mixed control (x held,
+    σ_yy to 1.6 p_A) — each target within the tolerance at a relaxed state, the held axis
+    bitwise unchanged."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.paths import ProtocolRunner
+    from dem_taichi.protocol_config import ProbingConfig, protocol_settings
+
+    sim = Simulation.from_checkpoint(run.files["state_A"])
+    config = protocol_settings(sim.scene)
+    runner = ProtocolRunner(sim, config, ProbingConfig(enabled=False))
+    tol = config.stress_tolerance
+    target = 1.3 * run.states["A"].measures["mean_stress"]
+    m, checks = runner.servo("A_to_B", (0, 1), np.eye(2), np.array([target, target]), sim.measure())
+    assert checks >= 1 and m["unbalanced_force_ratio"] < config.relax_unbalanced_force
+    assert abs(m["stress_xx"] - target) <= tol * target
+    assert abs(m["stress_yy"] - target) <= tol * target
+    length_x, strain_xx = sim.cell_lengths[0], m["strain_xx"]
+    high = 1.6 * run.states["A"].measures["mean_stress"]
+    m, _ = runner.servo("A_to_C", (1,), np.array([[0.0, 1.0]]), np.array([high]), m)
+    assert abs(m["stress_yy"] - high) <= tol * high
+    assert sim.cell_lengths[0] == length_x and m["strain_xx"] == strain_xx
+    assert runner.stages["A_to_B"].steps > 0 and runner.stages["A_to_C"].steps > 0
+
+
 def test_restart_from_a_checkpointed_state(run):
     from dem_taichi.engine import Simulation
 
