@@ -493,7 +493,7 @@ class Simulation:
     # ------------------------------------------------------------------------------------------
     # measures
     def _measure_sums(self) -> np.ndarray:
-        from dem_taichi.kernels.step import measure_sums
+        from dem_taichi.kernels.measures import measure_sums
 
         t0 = _time.perf_counter()
         self._launch(
@@ -707,7 +707,7 @@ class Simulation:
         params = state["params"]
         self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
         # disc positions are derived: recompute them from the centroids
-        from dem_taichi.kernels.step import place_all_discs
+        from dem_taichi.kernels.common import place_all_discs
 
         self._launch(place_all_discs, ns=self.geometry.n_spheres)
 

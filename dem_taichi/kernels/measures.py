@@ -1,0 +1,139 @@
+"""The measure kernel: serial sums of stress, energies, counts and forces (deterministic order),
+and the force and ``layout.PAIR_*`` bits of every list entry for the host.
+"""
+
+import taichi as ti
+
+from dem_taichi.kernels.common import nd
+from dem_taichi.kernels.layout import (
+    IMAGE_CODES,
+    M_CONTACTS,
+    M_INTERACTING,
+    M_KE_ROT,
+    M_KE_TRANS,
+    M_LONG_PAIRS,
+    M_SLIDING,
+    M_SUM_PAIR_FORCE,
+    M_SUM_ROD_FORCE,
+    M_SXX,
+    M_SXY,
+    M_SYX,
+    M_SYY,
+    M_U_CONTACT,
+    M_U_LONG,
+    P_DT,
+    P_INERTIA,
+    P_MASS,
+    P_MU,
+    PAIR_CONTACT,
+    PAIR_INTERACTING,
+    PAIR_LONG_RANGE,
+    PAIR_SLIDING,
+)
+from dem_taichi.kernels.pairs import pair_interaction
+
+
+@ti.kernel
+def measure_sums(
+    ns: ti.template(),
+    full: ti.template(),
+    phys: ti.template(),
+    vel: nd,
+    omega: nd,
+    force: nd,
+    torque: nd,
+    disc_x: nd,
+    disc_off: nd,
+    offsets: nd,
+    nbr: nd,
+    nbr_xi: nd,
+    nbr_count: nd,
+    charge: nd,
+    pair_table: nd,
+    cell: nd,
+    params: nd,
+    measures: nd,
+    rod_contacts: nd,
+    pair_out: nd,
+    pair_flags: nd,
+):
+    """Serial sums for the measures (deterministic order); also per-entry pair data.
+
+    pair_out (M,K,4): F_x, F_y, f_contact_normal, f_tangential of each list entry;
+    pair_flags (M,K): bits PAIR_CONTACT, PAIR_LONG_RANGE, PAIR_SLIDING, PAIR_INTERACTING (layout).
+    """
+    n_rods = vel.shape[0]
+    n_discs = n_rods * ns
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        for q in range(measures.shape[0]):
+            measures[q] = 0.0
+        for r in range(n_rods):
+            rod_contacts[r] = 0
+        dt = params[P_DT]
+        mass = params[P_MASS]
+        inertia = params[P_INERTIA]
+        for r in range(n_rods):
+            # full-step velocities of velocity Verlet: v(t) = v(t − Δt/2) + Δt/2 F(t)/M
+            vx = vel[r, 0] + 0.5 * dt * force[r, 0] / mass
+            vy = vel[r, 1] + 0.5 * dt * force[r, 1] / mass
+            w = omega[r] + 0.5 * dt * torque[r] / inertia
+            measures[M_KE_TRANS] += 0.5 * mass * (vx * vx + vy * vy)
+            measures[M_KE_ROT] += 0.5 * inertia * w * w
+            measures[M_SUM_ROD_FORCE] += ti.sqrt(force[r, 0] ** 2 + force[r, 1] ** 2)
+        for i in range(n_discs):
+            rod_i = i // ns
+            for k in range(nbr_count[i]):
+                if ti.static(full):
+                    if nbr[i, k] // IMAGE_CODES < i:
+                        pair_flags[i, k] = 0
+                        continue
+                fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
+                    pair_interaction(
+                        ns,
+                        phys,
+                        False,
+                        i,
+                        k,
+                        vel,
+                        omega,
+                        disc_x,
+                        disc_off,
+                        offsets,
+                        nbr,
+                        nbr_xi,
+                        charge,
+                        pair_table,
+                        cell,
+                        params,
+                    )
+                )
+                bits = 0
+                if active == 1:
+                    measures[M_SXX] += fx * bx
+                    measures[M_SXY] += fx * by
+                    measures[M_SYX] += fy * bx
+                    measures[M_SYY] += fy * by
+                    measures[M_U_CONTACT] += uc
+                    measures[M_U_LONG] += ul
+                    if delta > 0.0:
+                        bits |= PAIR_CONTACT
+                        measures[M_CONTACTS] += 1.0
+                        rod_contacts[rod_i] += 1
+                        rod_contacts[j // ns] += 1
+                        if ti.static(phys.friction):
+                            if ti.abs(ft) >= params[P_MU] * ti.abs(fc) * (1.0 - 1e-6):
+                                bits |= PAIR_SLIDING
+                                measures[M_SLIDING] += 1.0
+                    if la == 1:
+                        bits |= PAIR_LONG_RANGE
+                        measures[M_LONG_PAIRS] += 1.0
+                    if bits != 0:
+                        bits |= PAIR_INTERACTING
+                        measures[M_INTERACTING] += 1.0
+                        measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+                pair_out[i, k, 0] = fx
+                pair_out[i, k, 1] = fy
+                pair_out[i, k, 2] = fc
+                pair_out[i, k, 3] = ft
+                pair_flags[i, k] = bits

@@ -1,0 +1,175 @@
+"""The half (or full) Verlet neighbour list from cell lists across periodic images, and the
+rebuild criterion (serial code: called from inside a serial loop).
+
+Entries pack disc j with its periodic image (``layout.IMAGE_*``); the tangential springs ξ of
+the previous list are carried to the pairs that remain.
+"""
+
+import taichi as ti
+
+from dem_taichi.kernels.common import T, place_rod_discs
+from dem_taichi.kernels.layout import (
+    C_DISP,
+    C_LBX,
+    C_LBY,
+    C_LX,
+    C_LY,
+    C_VMAX,
+    F_FORCE_REBUILD,
+    F_NEEDED,
+    F_OLD_SAVED,
+    F_OVERFLOW,
+    F_REBUILDS,
+    F_STOP,
+    IMAGE_CODES,
+    IMAGE_RANGE,
+    IMAGE_SIDE,
+    P_DT,
+    P_REACH,
+    P_RLIST,
+    P_SKIN,
+)
+
+
+@ti.func
+def rebuild_lists(
+    ns: T,
+    full: T,
+    pos: T,
+    angle: T,
+    ref_pos: T,
+    ref_angle: T,
+    offsets: T,
+    disc_x: T,
+    disc_off: T,
+    nbr: T,
+    nbr_xi: T,
+    nbr_count: T,
+    old_nbr: T,
+    old_xi: T,
+    old_count: T,
+    cell_count: T,
+    cell_start: T,
+    cell_items: T,
+    disc_cell: T,
+    cell: T,
+    params: T,
+    flags: T,
+):
+    """Cell-list build of the half Verlet list; carries ξ of surviving pairs; flags overflow.
+
+    The old list is moved to the ``old_*`` buffers once (``F_OLD_SAVED``) so that a build that
+    overflowed can be repeated after the host grew the capacity, without losing any ξ.
+    """
+    n_rods = pos.shape[0]
+    n_discs = n_rods * ns
+    capacity = nbr.shape[1]
+    lx = cell[C_LX]
+    ly = cell[C_LY]
+    if flags[F_OLD_SAVED] == 0:
+        for i in range(n_discs):
+            c = nbr_count[i]
+            old_count[i] = c
+            for k in range(c):
+                old_nbr[i, k] = nbr[i, k]
+                old_xi[i, k] = nbr_xi[i, k]
+        for r in range(n_rods):
+            pos[r, 0] -= ti.floor(pos[r, 0])
+            pos[r, 1] -= ti.floor(pos[r, 1])
+            place_rod_discs(ns, r, pos, angle, offsets, disc_x, disc_off, lx, ly)
+        flags[F_OLD_SAVED] = 1
+    r_list = params[P_RLIST]
+    r_list2 = r_list * r_list
+    max_cells = cell_count.shape[0]
+    nx = ti.max(1, ti.min(ti.cast(lx / r_list, ti.i32), max_cells))
+    ny = ti.max(1, ti.min(ti.cast(ly / r_list, ti.i32), cell_count.shape[1]))
+    for cx in range(nx):
+        for cy in range(ny):
+            cell_count[cx, cy] = 0
+    for g in range(n_discs):
+        xw = disc_x[g, 0] - ti.floor(disc_x[g, 0] / lx) * lx
+        yw = disc_x[g, 1] - ti.floor(disc_x[g, 1] / ly) * ly
+        cx = ti.min(ti.max(ti.cast(xw / lx * nx, ti.i32), 0), nx - 1)
+        cy = ti.min(ti.max(ti.cast(yw / ly * ny, ti.i32), 0), ny - 1)
+        disc_cell[g] = cx * ny + cy
+        cell_count[cx, cy] += 1
+    running = 0
+    for cx in range(nx):
+        for cy in range(ny):
+            cell_start[cx, cy] = running
+            running += cell_count[cx, cy]
+            cell_count[cx, cy] = 0
+    for g in range(n_discs):
+        cx = disc_cell[g] // ny
+        cy = disc_cell[g] % ny
+        cell_items[cell_start[cx, cy] + cell_count[cx, cy]] = g
+        cell_count[cx, cy] += 1
+    overflow = 0
+    needed = 0
+    # with fewer than 3 cells along an axis, visit each distinct neighbour cell once
+    n_off_x = ti.min(nx, 3)
+    n_off_y = ti.min(ny, 3)
+    shift_x = 1 if nx >= 3 else 0
+    shift_y = 1 if ny >= 3 else 0
+    for i in range(n_discs):
+        rod_i = i // ns
+        cx = disc_cell[i] // ny
+        cy = disc_cell[i] % ny
+        count = 0
+        xi_x = disc_x[i, 0]
+        xi_y = disc_x[i, 1]
+        for ox in range(n_off_x):
+            ccx = (cx + ox - shift_x + nx) % nx
+            for oy in range(n_off_y):
+                ccy = (cy + oy - shift_y + ny) % ny
+                start = cell_start[ccx, ccy]
+                for t in range(cell_count[ccx, ccy]):
+                    j = cell_items[start + t]
+                    accept = j > i
+                    if ti.static(full):
+                        accept = j != i
+                    if accept and j // ns != rod_i:
+                        dx = xi_x - disc_x[j, 0]
+                        dy = xi_y - disc_x[j, 1]
+                        mx = ti.floor(dx / lx + 0.5)
+                        my = ti.floor(dy / ly + 0.5)
+                        dx -= mx * lx
+                        dy -= my * ly
+                        if dx * dx + dy * dy < r_list2:
+                            if count < capacity:
+                                code = (ti.cast(mx, ti.i32) + IMAGE_RANGE) * IMAGE_SIDE + (
+                                    ti.cast(my, ti.i32) + IMAGE_RANGE
+                                )
+                                nbr[i, count] = j * IMAGE_CODES + code
+                                xi_old = 0.0
+                                for k in range(old_count[i]):
+                                    if old_nbr[i, k] // IMAGE_CODES == j:
+                                        xi_old = old_xi[i, k]
+                                nbr_xi[i, count] = xi_old
+                            count += 1
+        if count > capacity:
+            overflow = 1
+        needed = ti.max(needed, count)
+        nbr_count[i] = ti.min(count, capacity)
+    flags[F_NEEDED] = ti.max(flags[F_NEEDED], needed)
+    if overflow == 1:
+        flags[F_OVERFLOW] = 1
+        flags[F_STOP] = 1
+    else:
+        flags[F_OLD_SAVED] = 0
+        flags[F_REBUILDS] += 1
+        for r in range(n_rods):
+            ref_pos[r, 0] = pos[r, 0]
+            ref_pos[r, 1] = pos[r, 1]
+            ref_angle[r] = angle[r]
+        cell[C_LBX] = lx
+        cell[C_LBY] = ly
+        cell[C_DISP] = 0.0
+
+
+@ti.func
+def needs_rebuild(cell: T, params: T, flags: T):
+    dt = params[P_DT]
+    strain = ti.max(ti.abs(cell[C_LX] / cell[C_LBX] - 1.0), ti.abs(cell[C_LY] / cell[C_LBY] - 1.0))
+    moved = 2.0 * (cell[C_DISP] + 2.0 * cell[C_VMAX] * dt) + params[P_REACH] * strain
+    return flags[F_OLD_SAVED] == 1 or flags[F_FORCE_REBUILD] == 1 or moved >= params[P_SKIN]
