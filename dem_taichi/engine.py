@@ -648,7 +648,8 @@ class Simulation:
         touching = (bits & L.PAIR_CONTACT) != 0
         xi = np.where(touching, xi, 0.0)
         charge, f_max, k_a = species_parameters(self.scene)
-        sc = self.scene
+        params = self.a["params"].to_numpy().astype(float)
+        vdw = self.physics.vdw
         return NetworkSnapshot(
             cell_lengths=lengths.copy(),
             rod_position=wrapped,
@@ -660,11 +661,11 @@ class Simulation:
             charge=charge,
             f_max=f_max,
             k_a=k_a,
-            k_n=float(self.a["params"].to_numpy()[L.P_KN]),
-            k_t=float(self.a["params"].to_numpy()[L.P_KT]),
-            mu=sc.contact.mu,
-            vdw_f_max=sc.van_der_waals.f_max if self.physics.vdw else 0.0,
-            vdw_k=sc.van_der_waals.k if self.physics.vdw else 0.0,
+            k_n=float(params[L.P_KN]),
+            k_t=float(params[L.P_KT]),
+            mu=float(params[L.P_MU]),
+            vdw_f_max=float(params[L.P_VDW_F]) if vdw else 0.0,
+            vdw_k=float(params[L.P_VDW_K]) if vdw else 0.0,
             pair_i=i.astype(np.int64),
             pair_j=j.astype(np.int64),
             pair_shift=shift,
@@ -764,6 +765,12 @@ class Simulation:
 
     def get_parameter(self, name: str) -> float:
         return float(self.a["params"].to_numpy()[_PARAMETER_INDEX[name]])
+
+    @property
+    def time_step(self) -> float:
+        """Δt the kernels integrate with (the runtime parameter; the scene's until
+        :meth:`set_parameters` changes it)."""
+        return self.get_parameter("time_step")
 
     def set_strain_reference(self) -> None:
         """Take the current cell as L0 of the logarithmic strains."""

@@ -81,7 +81,7 @@ def apply_strain(
 
     The cell then has L = L_0 exp(−Δε) on each axis (the engine integrates L̇ = −ε̇ L exactly).
     """
-    dt = sim.scene.time_step
+    dt = sim.time_step
     biggest = max(abs(strain[0]), abs(strain[1]))
     n = max(int(min_steps), int(math.ceil(biggest / (max_rate * dt))) if biggest > 0 else 0, 1)
     rates = (strain[0] / (n * dt), strain[1] / (n * dt))

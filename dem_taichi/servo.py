@@ -229,7 +229,7 @@ class StressServo:
                 continue
             if near_steps > 0 or np.all(np.abs(residual) <= c.servo_near_target * scale):
                 near_steps += c.servo_check_steps
-                stalled = near_steps * sim.scene.time_step > c.servo_stall_times * servo_time
+                stalled = near_steps * sim.time_step > c.servo_stall_times * servo_time
                 hunting = not (math.isfinite(ufr) and ufr < 100.0 * c.relax_unbalanced_force)
                 if stalled and not hunting:
                     near_steps = 0  # slow but static (creep): the gain is not the problem

@@ -242,3 +242,21 @@ def test_runtime_parameters_do_not_need_a_new_simulation(smoke, packed_state):
     sim.run(100)
     with pytest.raises(ValueError, match="unknown parameter"):
         sim.set_parameters(stiffness=1.0)
+
+
+def test_runtime_parameters_are_the_one_source_for_snapshot_and_time_step(smoke, packed_state):
+    """The snapshot (linear-response probes) and the protocol's Δt read the parameters the
+    kernels integrate with, not the scene (issue 9: k_n came from the parameters but μ from the
+    scene; Δt from the scene in the protocol)."""
+    from dem_taichi.quasistatic import apply_strain
+
+    sim = Simulation(smoke)
+    sim.set_state(packed_state)
+    assert sim.time_step == smoke.time_step and sim.snapshot().mu == smoke.contact.mu
+    sim.set_parameters(mu=0.1, k_n=2.0e5, time_step=0.5 * smoke.time_step)
+    snap = sim.snapshot()
+    assert (snap.mu, snap.k_n) == (0.1, 2.0e5)
+    assert sim.time_step == 0.5 * smoke.time_step
+    before = sim.step
+    apply_strain(sim, (1e-4, 0.0), "other", max_rate=1e-2, min_steps=1)
+    assert sim.step - before == math.ceil(1e-4 / (1e-2 * sim.time_step))

@@ -34,6 +34,7 @@ class DelayedPlant:
         )
         self.step = 0
         self.n_rods = 100
+        self.time_step = TIME_STEP
         self.scene = SimpleNamespace(
             time_step=TIME_STEP,
             control=SimpleNamespace(inertial_number_max=1.0),
