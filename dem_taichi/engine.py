@@ -46,17 +46,21 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
+from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
 from dem_taichi.kernels import layout as L
+from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
 from dem_taichi.runtime import ensure_runtime
-from dem_taichi.scene import GasState, generate_gas, rod_geometry, species_parameters
+from dem_taichi.scene import GasState, generate_gas, pair_table, rod_geometry, species_parameters
+from dem_taichi.snapshot import NetworkSnapshot
+from dem_taichi.state import convert_neighbour_list
 
 __all__ = [
     "AxisControl",
@@ -85,52 +89,6 @@ class Physics:
     vdw: bool
 
 
-@dataclass(frozen=True)
-class AxisControl:
-    """Control of one cell axis: ``mode`` "strain_rate", ``value`` = ε̇ (compression positive).
-
-    (The engine's own stress mode is gone: hold stresses with the protocol's servo,
-    :class:`dem_taichi.servo.StressServo`.)
-    """
-
-    mode: str = "strain_rate"
-    value: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.mode != "strain_rate":
-            raise ValueError(
-                f"mode = {self.mode!r}: allowed values are strain_rate (stresses are held by "
-                "the protocol's servo, dem_taichi.servo.StressServo)"
-            )
-        if not math.isfinite(self.value):
-            raise ValueError(f"control value must be finite, got {self.value}")
-
-
-@dataclass(frozen=True)
-class CellControl:
-    """Per-axis cell control plus the stage label written with the history records."""
-
-    x: AxisControl = field(default_factory=AxisControl)
-    y: AxisControl = field(default_factory=AxisControl)
-    stage: str = "other"
-
-    @classmethod
-    def fixed(cls, stage: str = "relax") -> CellControl:
-        return cls(AxisControl("strain_rate", 0.0), AxisControl("strain_rate", 0.0), stage)
-
-    @classmethod
-    def strain_rate(
-        cls, rate_x: float, rate_y: float | None = None, stage: str = "other"
-    ) -> CellControl:
-        rate_y = rate_x if rate_y is None else rate_y
-        return cls(AxisControl("strain_rate", rate_x), AxisControl("strain_rate", rate_y), stage)
-
-    @property
-    def rates(self) -> np.ndarray:
-        """(ε̇_xx, ε̇_yy)."""
-        return np.array([self.x.value, self.y.value], dtype=float)
-
-
 _PARAMETER_INDEX = {
     "time_step": L.P_DT,
     "k_n": L.P_KN,
@@ -140,23 +98,6 @@ _PARAMETER_INDEX = {
     "mu": L.P_MU,
     "local_damping": L.P_ALPHA,
 }
-
-
-def _pair_table(scene: Scene) -> np.ndarray:
-    """(n_s, n_s, 3): signed F_max, signed k_a and range g_max of each species pair.
-
-    Pair values are harmonic means 2ab/(a+b) of the two discs' species values; s = c_i c_j.
-    """
-    charge, f_max, k_a = species_parameters(scene)
-    n = len(charge)
-    table = np.zeros((n, n, 3))
-    for a in range(n):
-        for b in range(n):
-            s = charge[a] * charge[b]
-            f = 2 * f_max[a] * f_max[b] / (f_max[a] + f_max[b])
-            k = 2 * k_a[a] * k_a[b] / (k_a[a] + k_a[b])
-            table[a, b] = (s * f, s * k, f / k) if s != 0 else (0.0, 0.0, f / k)
-    return table
 
 
 class Simulation:
@@ -217,7 +158,7 @@ class Simulation:
         d = self.geometry.diameter
         reach = 0.0
         if self.physics.long_range:
-            table = _pair_table(self.scene)
+            table = pair_table(self.scene)
             reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
         if self.physics.vdw:
             reach = max(reach, self.scene.van_der_waals.f_max / self.scene.van_der_waals.k)
@@ -245,7 +186,7 @@ class Simulation:
         }
         self.a["offsets"].from_numpy(self.geometry.offsets.astype(self._real))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
-        self.a["pair_table"].from_numpy(_pair_table(self.scene).astype(self._real))
+        self.a["pair_table"].from_numpy(pair_table(self.scene).astype(self._real))
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
@@ -525,37 +466,6 @@ class Simulation:
     def rod_angles(self) -> np.ndarray:
         return self.a["angle"].to_numpy().astype(float)
 
-    def _contact_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
-        counts = self.a["nbr_count"].to_numpy()
-        bits = self.a["pair_flags"].to_numpy()
-        slots = np.arange(self.capacity)[None, :] < counts[:, None]
-        i, k = np.nonzero(slots & (bits & L.PAIR_INTERACTING != 0))
-        packed = self.a["nbr"].to_numpy()[i, k]
-        return i, k, packed, bits[i, k]
-
-    def _mechanical_coordination(self, n_contacts: int) -> float:
-        i, _, packed, bits = self._contact_pairs()
-        touching = (bits & L.PAIR_CONTACT) != 0
-        ns = self.geometry.n_spheres
-        rod_i = (i[touching] // ns).astype(np.int64)
-        rod_j = (packed[touching] // L.IMAGE_CODES // ns).astype(np.int64)
-        alive = np.ones(self.n_rods, dtype=bool)
-        while True:
-            keep = alive[rod_i] & alive[rod_j]
-            count = np.bincount(rod_i[keep], minlength=self.n_rods) + np.bincount(
-                rod_j[keep], minlength=self.n_rods
-            )
-            rattlers = alive & (count < 2)
-            if not rattlers.any():
-                break
-            alive &= ~rattlers
-        n_alive = int(alive.sum())
-        if n_alive == 0:
-            return 0.0
-        keep = alive[rod_i] & alive[rod_j]
-        return 2.0 * int(keep.sum()) / n_alive
-
     def measure(self) -> dict:
         """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
         from dem_taichi.io.schema import stage_code
@@ -600,7 +510,7 @@ class Simulation:
             "fabric_xy": fxy,
             "fabric_deviator": fyy - fxx,
             "coordination_number": 2.0 * n_contacts / self.n_rods,
-            "mechanical_coordination_number": self._mechanical_coordination(n_contacts),
+            "mechanical_coordination_number": self._mechanical_coordination(),
             "n_contacts": n_contacts,
             "n_long_range_pairs": int(round(sums[L.M_LONG_PAIRS])),
             "kinetic_energy": float(sums[L.M_KE_TRANS] + sums[L.M_KE_ROT]),
@@ -620,57 +530,31 @@ class Simulation:
         return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"]
 
     # ------------------------------------------------------------------------------------------
-    # network snapshot
-    def snapshot(self):
-        """The interacting network as a :class:`dem_taichi.snapshot.NetworkSnapshot`."""
-        from dem_taichi.snapshot import NetworkSnapshot
+    # network (dem_taichi.network)
+    def _contact_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
+        a = self.a
+        counts, bits = a["nbr_count"].to_numpy(), a["pair_flags"].to_numpy()
+        return interacting_entries(counts, bits, a["nbr"].to_numpy(), self.capacity)
 
+    def _mechanical_coordination(self) -> float:
+        i, _, packed, bits = self._contact_pairs()
+        return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The interacting network as a :class:`dem_taichi.snapshot.NetworkSnapshot`."""
         self._measure_sums()
-        i, k, packed, bits = self._contact_pairs()
-        j = packed // L.IMAGE_CODES
-        code = packed % L.IMAGE_CODES
-        image = np.stack(L.image_of_code(code), axis=1).astype(float)
-        lengths = self.cell_lengths
-        disc_x = self.a["disc_x"].to_numpy().astype(float)
-        r_ij = disc_x[i] - disc_x[j] - image * lengths
-        wrapped = self.rod_positions()
-        ns = self.geometry.n_spheres
-        offsets = self.geometry.offsets
-        th = self.rod_angles()
-        axis = np.stack([np.cos(th), np.sin(th)], axis=1)
-        x_w = wrapped[:, None, :] + offsets[None, :, None] * axis[:, None, :]
-        x_w = x_w.reshape(-1, 2)
-        shift = x_w[i] - x_w[j] - r_ij
-        shift = np.round(shift / lengths) * lengths
-        normal = r_ij / np.linalg.norm(r_ij, axis=1)[:, None]
-        tangent = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
-        xi = self.a["nbr_xi"].to_numpy().astype(float)[i, k]
-        touching = (bits & L.PAIR_CONTACT) != 0
-        xi = np.where(touching, xi, 0.0)
-        charge, f_max, k_a = species_parameters(self.scene)
-        params = self.a["params"].to_numpy().astype(float)
-        vdw = self.physics.vdw
-        return NetworkSnapshot(
-            cell_lengths=lengths.copy(),
-            rod_position=wrapped,
-            rod_angle=th,
-            n_spheres=ns,
-            spacing=self.geometry.spacing,
-            diameter=self.geometry.diameter,
-            disc_mass=self.geometry.disc_mass,
-            charge=charge,
-            f_max=f_max,
-            k_a=k_a,
-            k_n=float(params[L.P_KN]),
-            k_t=float(params[L.P_KT]),
-            mu=float(params[L.P_MU]),
-            vdw_f_max=float(params[L.P_VDW_F]) if vdw else 0.0,
-            vdw_k=float(params[L.P_VDW_K]) if vdw else 0.0,
-            pair_i=i.astype(np.int64),
-            pair_j=j.astype(np.int64),
-            pair_shift=shift,
-            tangential_spring=xi[:, None] * tangent,
-            sliding=(bits & L.PAIR_SLIDING) != 0,
+        return network_snapshot(
+            self._contact_pairs(),
+            self.a["disc_x"].to_numpy().astype(float),
+            self.a["nbr_xi"].to_numpy().astype(float),
+            self.cell_lengths,
+            self.rod_positions(),
+            self.rod_angles(),
+            self.geometry,
+            species_parameters(self.scene),
+            self.a["params"].to_numpy().astype(float),
+            self.physics.vdw,
         )
 
     # ------------------------------------------------------------------------------------------
@@ -696,7 +580,7 @@ class Simulation:
                 f"state precision {state['angle'].dtype} differs from the simulation's "
                 f"{np.dtype(self._real)}"
             )
-        state = self._convert_list(state)
+        state = convert_neighbour_list(state, self.full_list, self.capacity)
         capacity = state["neighbours"].shape[1]
         if capacity != self.capacity:
             self._grow(capacity)
@@ -711,44 +595,6 @@ class Simulation:
         from dem_taichi.kernels.common import place_all_discs
 
         self._launch(place_all_discs, ns=self.geometry.n_spheres)
-
-    def _convert_list(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Convert the neighbour list of a state between the half (i < j) and full forms.
-
-        The scalar tangential spring ξ is the same seen from both discs (t and the relative
-        velocity both change sign), so a pair's entry is mirrored with its ξ unchanged and the
-        image code negated.
-        """
-        full = bool(state.get("full_list", np.array(False)))
-        if full == self.full_list:
-            return state
-        counts = state["neighbour_count"]
-        entries = state["neighbours"]
-        springs = state["tangential_spring"]
-        rows: list[list[tuple[int, float]]] = [[] for _ in range(len(counts))]
-        for i, count in enumerate(counts):
-            for k in range(int(count)):
-                entry, xi = int(entries[i, k]), springs[i, k]
-                j, code = divmod(entry, L.IMAGE_CODES)
-                if full:
-                    if j > i:
-                        rows[i].append((entry, xi))
-                else:
-                    rows[i].append((entry, xi))
-                    mirrored = L.mirrored_image_code(code)
-                    rows[j].append((i * L.IMAGE_CODES + mirrored, xi))
-        capacity = max(max((len(r) for r in rows), default=1), self.capacity)
-        new_entries = np.zeros((len(counts), capacity), dtype=entries.dtype)
-        new_springs = np.zeros((len(counts), capacity), dtype=springs.dtype)
-        for i, row in enumerate(rows):
-            for k, (entry, xi) in enumerate(row):
-                new_entries[i, k], new_springs[i, k] = entry, xi
-        converted = dict(state)
-        converted["neighbours"] = new_entries
-        converted["tangential_spring"] = new_springs
-        converted["neighbour_count"] = np.array([len(r) for r in rows], dtype=counts.dtype)
-        converted["full_list"] = np.array(self.full_list)
-        return converted
 
     def set_parameters(self, **values: float) -> None:
         """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""

@@ -160,3 +160,20 @@ def generate_gas(scene: Scene, max_attempts_per_rod: int = 10_000) -> GasState:
     gyration = math.sqrt(geo.inertia / geo.mass)
     omega = rng.normal(0.0, p.initial_speed / gyration, size=n)
     return GasState(cell, positions, angles, velocity, omega)
+
+
+def pair_table(scene: Scene) -> np.ndarray:
+    """(n_s, n_s, 3): signed F_max, signed k_a and range g_max of each species pair.
+
+    Pair values are harmonic means 2ab/(a+b) of the two discs' species values; s = c_i c_j.
+    """
+    charge, f_max, k_a = species_parameters(scene)
+    n = len(charge)
+    table = np.zeros((n, n, 3))
+    for a in range(n):
+        for b in range(n):
+            s = charge[a] * charge[b]
+            f = 2 * f_max[a] * f_max[b] / (f_max[a] + f_max[b])
+            k = 2 * k_a[a] * k_a[b] / (k_a[a] + k_a[b])
+            table[a, b] = (s * f, s * k, f / k) if s != 0 else (0.0, 0.0, f / k)
+    return table

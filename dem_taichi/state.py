@@ -37,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from dem_taichi.device_arrays import HOST_STATE_KEYS, STATE_ARRAYS
+from dem_taichi.kernels import layout as L
 
 #: Keys of the state dict: the state arrays of :data:`dem_taichi.device_arrays.DEVICE_ARRAYS`,
 #: then the host values.
@@ -57,3 +58,45 @@ def states_equal(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
         if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
             return False
     return True
+
+
+def convert_neighbour_list(
+    state: dict[str, np.ndarray], full_list: bool, capacity: int
+) -> dict[str, np.ndarray]:
+    """The state with its neighbour list in the half (i < j) or the full form (``full_list``),
+    at least ``capacity`` entries per disc (the state itself when it is in that form already).
+
+    The scalar tangential spring ξ is the same seen from both discs (t and the relative
+    velocity both change sign), so a pair's entry is mirrored with its ξ unchanged and the
+    image code negated.
+    """
+    full = bool(state.get("full_list", np.array(False)))
+    if full == full_list:
+        return state
+    counts = state["neighbour_count"]
+    entries = state["neighbours"]
+    springs = state["tangential_spring"]
+    rows: list[list[tuple[int, float]]] = [[] for _ in range(len(counts))]
+    for i, count in enumerate(counts):
+        for k in range(int(count)):
+            entry, xi = int(entries[i, k]), springs[i, k]
+            j, code = divmod(entry, L.IMAGE_CODES)
+            if full:
+                if j > i:
+                    rows[i].append((entry, xi))
+            else:
+                rows[i].append((entry, xi))
+                mirrored = L.mirrored_image_code(code)
+                rows[j].append((i * L.IMAGE_CODES + mirrored, xi))
+    capacity = max(max((len(r) for r in rows), default=1), capacity)
+    new_entries = np.zeros((len(counts), capacity), dtype=entries.dtype)
+    new_springs = np.zeros((len(counts), capacity), dtype=springs.dtype)
+    for i, row in enumerate(rows):
+        for k, (entry, xi) in enumerate(row):
+            new_entries[i, k], new_springs[i, k] = entry, xi
+    converted = dict(state)
+    converted["neighbours"] = new_entries
+    converted["tangential_spring"] = new_springs
+    converted["neighbour_count"] = np.array([len(r) for r in rows], dtype=counts.dtype)
+    converted["full_list"] = np.array(full_list)
+    return converted
