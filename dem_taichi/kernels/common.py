@@ -9,7 +9,11 @@ from dem_taichi.kernels.layout import (
     C_LY,
 )
 
-nd = ti.types.ndarray()
+# kernel array parameters carry their dimension (checked at launch; the table of
+# dem_taichi.device_arrays gives each array's, and a test checks the two agree)
+nd1 = ti.types.ndarray(ndim=1)
+nd2 = ti.types.ndarray(ndim=2)
+nd3 = ti.types.ndarray(ndim=3)
 T = ti.template()  # arrays passed to ti.func by reference
 
 
@@ -48,7 +52,7 @@ def place_rod_discs_cs(ns: T, r, pos: T, c, s, offsets: T, disc_x: T, disc_off: 
 
 @ti.kernel
 def place_all_discs(
-    ns: ti.template(), pos: nd, angle: nd, offsets: nd, disc_x: nd, disc_off: nd, cell: nd
+    ns: ti.template(), pos: nd2, angle: nd1, offsets: nd1, disc_x: nd2, disc_off: nd2, cell: nd1
 ):
     """Recompute the (derived) disc positions from the centroids, e.g. after a state restore."""
     for r in range(pos.shape[0]):

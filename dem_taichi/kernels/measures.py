@@ -4,7 +4,7 @@ and the force and ``layout.PAIR_*`` bits of every list entry for the host.
 
 import taichi as ti
 
-from dem_taichi.kernels.common import nd
+from dem_taichi.kernels.common import nd1, nd2, nd3
 from dem_taichi.kernels.layout import (
     IMAGE_CODES,
     M_CONTACTS,
@@ -38,24 +38,24 @@ def measure_sums(
     ns: ti.template(),
     full: ti.template(),
     phys: ti.template(),
-    vel: nd,
-    omega: nd,
-    force: nd,
-    torque: nd,
-    disc_x: nd,
-    disc_off: nd,
-    offsets: nd,
-    nbr: nd,
-    nbr_xi: nd,
-    nbr_count: nd,
-    charge: nd,
-    pair_table: nd,
-    cell: nd,
-    params: nd,
-    measures: nd,
-    rod_contacts: nd,
-    pair_out: nd,
-    pair_flags: nd,
+    vel: nd2,
+    omega: nd1,
+    force: nd2,
+    torque: nd1,
+    disc_x: nd2,
+    disc_off: nd2,
+    offsets: nd1,
+    nbr: nd2,
+    nbr_xi: nd2,
+    nbr_count: nd1,
+    charge: nd1,
+    pair_table: nd3,
+    cell: nd1,
+    params: nd1,
+    measures: nd1,
+    rod_contacts: nd1,
+    pair_out: nd3,
+    pair_flags: nd2,
 ):
     """Serial sums for the measures (deterministic order); also per-entry pair data.
 

@@ -47,3 +47,20 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
     for kernel in kernels:
         unknown = set(kernel_parameters(kernel)) - declared - SCALARS
         assert not unknown, (kernel.__name__, unknown)
+
+
+def test_every_kernel_array_parameter_has_the_dimension_of_the_table():
+    pytest.importorskip("taichi")
+    from dem_taichi.kernels import common, measures, step
+
+    shapes = {a.name: a.shape for a in DEVICE_ARRAYS}
+    kernels = [step.run_steps_serial, step.rebuild_if_needed, step.kick_drift_parallel,
+               step.forces_parallel, step.forces_gather, step.prime_forces,
+               measures.measure_sums, common.place_all_discs]  # fmt: skip
+    checked = 0
+    for kernel in kernels:
+        for name, parameter in inspect.signature(kernel).parameters.items():
+            if name in shapes:
+                assert parameter.annotation.ndim == len(shapes[name]), (kernel.__name__, name)
+                checked += 1
+    assert checked > 100
