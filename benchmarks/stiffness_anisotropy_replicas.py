@@ -106,8 +106,8 @@ def _pm(mean, half, n, digits=3):
     return text + (f" ± {half:.2g}" if np.isfinite(half) else "") + f" ({n})"
 
 
-def summarise(groups: dict[str, list[Path]]) -> tuple[str, dict]:
-    """Markdown tables and the per-group statistics."""
+def summarise(groups: dict[str, list[Path]], only: tuple[str, ...] = ()) -> tuple[str, dict]:
+    """Markdown tables and the per-group statistics (``only``: the variants to tabulate)."""
     lines = ["# Frozen-network stiffness anisotropy over replicas", ""]
     lines += [
         "Mean ± 95 % interval over replica runs (n in brackets); unstable responses (negative",
@@ -117,7 +117,7 @@ def summarise(groups: dict[str, list[Path]]) -> tuple[str, dict]:
     result = {}
     for group, folders in groups.items():
         runs = [run_findings(read_matrix(f)) for f in folders]
-        names = list(runs[0])
+        names = [n for n in runs[0] if not only or n in only]
         names_ = ", ".join(f.parent.name if f.name == "matrix" else f.name for f in folders)
         lines += [f"## {group}: {len(folders)} runs ({names_})", ""]
         head = (
@@ -153,8 +153,14 @@ def figure(result: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(result), figsize=(5.5 * len(result), 4.2), squeeze=False)
-    for ax, (group, entries) in zip(axes[0], result.items(), strict=True):
+    n_cols = min(3, len(result))
+    n_rows = -(-len(result) // n_cols)
+    fig, axes = plt.subplots(n_rows, n_cols, figsize=(5.5 * n_cols, 4.2 * n_rows), squeeze=False)
+    for ax in axes.ravel()[len(result) :]:
+        ax.set_visible(False)
+    for ax, (group, entries) in zip(axes.ravel(), result.items(), strict=False):
+        if "rigid" not in entries:
+            continue
         for family, marker in (("chain_kb", "o"), ("bend_kb", "s"), ("chainkt1_kb", "^")):
             for key, colour in (
                 ("ratio_C", "tab:blue"),
@@ -205,6 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         help="NAME=DIR,DIR,... (folders holding stiffness_anisotropy_matrix.csv)",
     )
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results"))
+    parser.add_argument("--variants", default="", help="comma list of variants to tabulate")
     args = parser.parse_args(argv)
     groups = {}
     for spec in args.group:
@@ -218,7 +225,8 @@ def main(argv: list[str] | None = None) -> int:
                     f"{f}: no stiffness_anisotropy_matrix.csv (run stiffness_anisotropy.py)"
                 )
         groups[name] = folders
-    text, result = summarise(groups)
+    only = tuple(v.strip() for v in args.variants.split(",") if v.strip())
+    text, result = summarise(groups, only)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "stiffness_anisotropy_replicas.md").write_text(text)
     figure(result, args.out / "stiffness_anisotropy_replicas.png")
