@@ -8,9 +8,11 @@ Public API
 ``sim.run(n_steps, control=None, output_every=None, writer=None, progress=False, callback=None)``
     Advances ``n_steps`` time steps under a :class:`CellControl` (default: the cell held fixed);
     ``writer`` (e.g. :class:`dem_taichi.io.HistoryWriter`) gets ``sim.measure()`` every
-    ``output_every`` steps and at the end; returns the last measures (a dict).
-``sim.measure() -> dict``
-    The history variables of ``dem_taichi.io.schema`` (stress, p, q, v, fabric, Z, energies...).
+    ``output_every`` steps and at the end; returns the last measures
+    (:class:`dem_taichi.measures.Measures`).
+``sim.measure() -> Measures``
+    The history variables of ``dem_taichi.io.schema`` (stress, p, q, v, fabric, Z, energies...),
+    a typed dict (:class:`dem_taichi.measures.Measures`).
 ``sim.snapshot() -> NetworkSnapshot``
     The interacting network for the linear-response probes.
 ``sim.get_state() / sim.set_state(state)``
@@ -56,6 +58,7 @@ from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
 from dem_taichi.kernels import layout as L
+from dem_taichi.measures import Measures
 from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
 from dem_taichi.runtime import ensure_runtime
 from dem_taichi.scene import GasState, generate_gas, pair_table, rod_geometry, species_parameters
@@ -389,8 +392,8 @@ class Simulation:
         output_every: int | None = None,
         writer: Any = None,
         progress: bool = False,
-        callback: Callable[[Simulation, dict], None] | None = None,
-    ) -> dict:
+        callback: Callable[[Simulation, Measures], None] | None = None,
+    ) -> Measures:
         """Advance ``n_steps`` steps; returns the measures at the end (see module docstring).
 
         ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
@@ -408,7 +411,7 @@ class Simulation:
             from tqdm import tqdm
 
             bar = tqdm(total=n_steps, unit="step", desc=control.stage, smoothing=0.1)
-        measures: dict = {}
+        measures: Measures | None = None
         done = 0
         next_output = output_every
         try:
@@ -429,7 +432,7 @@ class Simulation:
         finally:
             if bar is not None:
                 bar.close()
-        return measures if measures else self.measure()
+        return measures if measures is not None else self.measure()
 
     # ------------------------------------------------------------------------------------------
     # measures
@@ -466,7 +469,7 @@ class Simulation:
     def rod_angles(self) -> np.ndarray:
         return self.a["angle"].to_numpy().astype(float)
 
-    def measure(self) -> dict:
+    def measure(self) -> Measures:
         """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
         from dem_taichi.io.schema import stage_code
 

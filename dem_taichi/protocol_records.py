@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from dem_taichi.analysis import Transition
+from dem_taichi.measures import Measures
 
 __all__ = ["ProtocolError", "RelaxedState", "StageRecord", "ProtocolResult"]
 
@@ -35,7 +36,7 @@ class RelaxedState:
     stage: str
     increment: int
     targets: tuple[float, float]
-    measures: dict
+    measures: Measures
     relaxed: bool
     servo_iterations: int = 0
 

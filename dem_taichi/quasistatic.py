@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dem_taichi.engine import CellControl
+from dem_taichi.measures import Measures
 
 __all__ = ["strain_rate_cap", "relax", "apply_strain"]
 
@@ -44,8 +45,8 @@ def relax(
     kinetic_energy_per_rod: float,
     check_steps: int,
     max_steps: int,
-    give_up: Callable[[dict, int], bool] | None = None,
-) -> tuple[dict, bool, int]:
+    give_up: Callable[[Measures, int], bool] | None = None,
+) -> tuple[Measures, bool, int]:
     """Run at fixed cell until UFR < ``unbalanced_force`` and KE/N < ``kinetic_energy_per_rod``.
 
     Checks every ``check_steps`` steps, stops after ``max_steps``; ``give_up(measures, steps)``
@@ -75,7 +76,7 @@ def apply_strain(
     min_steps: int,
     writer: Any = None,
     output_every: int | None = None,
-) -> dict:
+) -> Measures:
     """Apply the logarithmic strain increments (Δε_xx, Δε_yy) (compression positive) at constant
     rates, over n = max(min_steps, ceil(max|Δε| / (max_rate dt))) steps; returns the measures.
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, StageRecord
 from dem_taichi.quasistatic import _control, strain_rate_cap
@@ -151,9 +152,9 @@ class StressServo:
         axes: tuple[int, ...],
         weights: np.ndarray,
         targets: np.ndarray,
-        measures: dict,
+        measures: Measures,
         record: StageRecord,
-    ) -> tuple[dict, int]:
+    ) -> tuple[Measures, int]:
         """Reach W σ = targets at a relaxed state by servo-controlled strain rates on ``axes``.
 
         ``weights`` (n_ctrl × 2) maps (σ_xx, σ_yy) to the controlled quantities; ``axes`` lists

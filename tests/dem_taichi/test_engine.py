@@ -36,6 +36,21 @@ def test_measure_names_are_the_history_schema(smoke):
     assert math.isnan(m["inertial_number"])  # p = 0 in the gas
 
 
+def test_measures_record_declares_every_history_variable_with_its_type(smoke):
+    """Measures (the typed dict of measure()) has exactly the history variables; the engine
+    fills each with a value of the declared type."""
+    import typing
+
+    from dem_taichi.measures import Measures
+
+    hints = typing.get_type_hints(Measures)
+    assert set(hints) == set(HISTORY)
+    m = Simulation(smoke).run(10, CellControl.strain_rate(0.1))
+    assert set(m) == set(hints)
+    for name, kind in hints.items():
+        assert type(m[name]) is kind, (name, type(m[name]))
+
+
 def test_strain_control_follows_the_prescribed_logarithmic_strain(smoke):
     sim = Simulation(smoke)
     m = sim.run(1000, control=CellControl.strain_rate(0.05, 0.1))
