@@ -58,7 +58,7 @@ from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
 from dem_taichi.kernels import layout as L
-from dem_taichi.measures import Measures
+from dem_taichi.measures import Measures, history_record
 from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
 from dem_taichi.runtime import ensure_runtime
 from dem_taichi.scene import GasState, generate_gas, pair_table, rod_geometry, species_parameters
@@ -474,54 +474,20 @@ class Simulation:
         from dem_taichi.io.schema import stage_code
 
         sums = self._measure_sums()
-        lengths = self.cell_lengths
-        area = float(np.prod(lengths))
-        stress = self._stress_tensor(sums)
-        p = 0.5 * (stress[0, 0] + stress[1, 1])
-        q = stress[1, 1] - stress[0, 0]
-        v = area / (self.n_rods * self.geometry.solid_area)
-        th = self.rod_angles()
-        c, s = np.cos(th), np.sin(th)
-        fxx, fyy, fxy = float(np.mean(c * c)), float(np.mean(s * s)), float(np.mean(c * s))
-        n_contacts = int(round(sums[L.M_CONTACTS]))
-        n_pairs = sums[L.M_INTERACTING]
-        mean_pair = sums[L.M_SUM_PAIR_FORCE] / n_pairs if n_pairs > 0 else 0.0
-        mean_rod = sums[L.M_SUM_ROD_FORCE] / self.n_rods
-        unbalanced = mean_rod / mean_pair if mean_pair > 0 else float("nan")
-        rho = self.geometry.mass / self.geometry.solid_area
-        rate = float(np.max(np.abs(self._rates)))
-        inertial = rate * self.geometry.diameter * math.sqrt(rho / p) if p > 0 else float("nan")
-        return {
-            "step": int(self.step),
-            "time": self.time,
-            "stage": stage_code(self._stage),
-            "cell_length_x": float(lengths[0]),
-            "cell_length_y": float(lengths[1]),
-            "strain_xx": float(-math.log(lengths[0] / self.reference_lengths[0])),
-            "strain_yy": float(-math.log(lengths[1] / self.reference_lengths[1])),
-            "strain_rate_xx": float(self._rates[0]),
-            "strain_rate_yy": float(self._rates[1]),
-            "stress_xx": float(stress[0, 0]),
-            "stress_yy": float(stress[1, 1]),
-            "stress_xy": float(0.5 * (stress[0, 1] + stress[1, 0])),
-            "mean_stress": float(p),
-            "deviatoric_stress": float(q),
-            "specific_volume": float(v),
-            "void_ratio": float(v - 1.0),
-            "fabric_xx": fxx,
-            "fabric_yy": fyy,
-            "fabric_xy": fxy,
-            "fabric_deviator": fyy - fxx,
-            "coordination_number": 2.0 * n_contacts / self.n_rods,
-            "mechanical_coordination_number": self._mechanical_coordination(),
-            "n_contacts": n_contacts,
-            "n_long_range_pairs": int(round(sums[L.M_LONG_PAIRS])),
-            "kinetic_energy": float(sums[L.M_KE_TRANS] + sums[L.M_KE_ROT]),
-            "contact_energy": float(sums[L.M_U_CONTACT]),
-            "long_range_energy": float(sums[L.M_U_LONG]),
-            "unbalanced_force_ratio": float(unbalanced),
-            "inertial_number": float(inertial),
-        }
+        return history_record(
+            sums,
+            self._stress_tensor(sums),
+            self.cell_lengths,
+            self.reference_lengths,
+            self._rates,
+            self.rod_angles(),
+            self.geometry,
+            self.n_rods,
+            self.step,
+            self.time,
+            stage_code(self._stage),
+            self._mechanical_coordination(),
+        )
 
     def stress(self) -> np.ndarray:
         """Stress tensor (2, 2), compression positive, from the current forces."""
