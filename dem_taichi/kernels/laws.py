@@ -1,4 +1,9 @@
-"""Pair force laws as Taichi functions (model.md §1.2; notes/dem_interfaces.md).
+"""Pair force laws as Taichi functions (model.md §1.2; notes/dem_interfaces.md), each the
+scalar form of the numpy reference of the same name in :mod:`dem_taichi.forcelaw`.
+
+Contact: normal spring-dashpot f_c = k_n δ − γ_n v_n (``contact_normal_force``); tangential
+spring-dashpot F_t = −k_t ξ − γ_t v_t capped at μ|f_c|, the spring ξ reset to the cap on slip
+(``tangential_force``; ξ is the scalar spring along t = (−n_y, n_x)).
 
 Symbols: gap g = |r| − d (surface gap), overlap δ = −g; a positive scalar force is repulsive.
 Long-range law of a pair with signed amplitude sF = s·F_max and signed stiffness sk = s·k_a
@@ -13,6 +18,27 @@ term is the same law with sF = −F_w, sk = −k_w (always attractive).
 """
 
 import taichi as ti
+
+from dem_taichi.kernels.common import sign
+
+
+@ti.func
+def contact_normal_force(overlap, k_n, normal_velocity, gamma_n):
+    """f_c = k_n δ − γ_n v_n (for δ > 0; positive repulsive, not clipped at zero)."""
+    return k_n * overlap - gamma_n * normal_velocity
+
+
+@ti.func
+def tangential_force(spring, tangential_velocity, k_t, gamma_t, cap):
+    """(F_t, ξ): F_t = −k_t ξ − γ_t v_t, capped at |F_t| ≤ cap = μ|f_c|; on slip ξ is reset to
+    −(F_t + γ_t v_t)/k_t (the capped value)."""
+    ft = -k_t * spring - gamma_t * tangential_velocity
+    xi = spring
+    if ti.abs(ft) > cap:
+        ft = cap * sign(ft)
+        if k_t > 0.0:
+            xi = -(ft + gamma_t * tangential_velocity) / k_t
+    return ft, xi
 
 
 @ti.func

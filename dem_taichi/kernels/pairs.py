@@ -8,8 +8,13 @@ Coulomb friction), long-range and van der Waals forces of one list entry (the la
 
 import taichi as ti
 
-from dem_taichi.kernels.common import T, sign
-from dem_taichi.kernels.laws import long_range_energy, long_range_force
+from dem_taichi.kernels.common import T
+from dem_taichi.kernels.laws import (
+    contact_normal_force,
+    long_range_energy,
+    long_range_force,
+    tangential_force,
+)
 from dem_taichi.kernels.layout import (
     BLOWUP_OVERLAP,
     C_LX,
@@ -115,7 +120,7 @@ def pair_interaction(
             vrx -= params[P_RATE_X] * bx
             vry -= params[P_RATE_Y] * by
             vn = vrx * nx + vry * ny
-            fc = params[P_KN] * delta - params[P_GN] * vn
+            fc = contact_normal_force(delta, params[P_KN], vn, params[P_GN])
             fn += fc
             u_contact = 0.5 * params[P_KN] * delta * delta
             if ti.static(phys.friction):
@@ -124,13 +129,7 @@ def pair_interaction(
                 if ti.static(update):
                     xi += vt * params[P_DT]
                 kt = params[P_KT]
-                gt = params[P_GT]
-                ft = -kt * xi - gt * vt
-                cap = params[P_MU] * ti.abs(fc)
-                if ti.abs(ft) > cap:
-                    ft = cap * sign(ft)
-                    if kt > 0.0:
-                        xi = -(ft + gt * vt) / kt
+                ft, xi = tangential_force(xi, vt, kt, params[P_GT], params[P_MU] * ti.abs(fc))
                 if ti.static(update):
                     nbr_xi[i, k] = xi
                 u_contact += 0.5 * kt * xi * xi
