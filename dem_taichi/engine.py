@@ -57,6 +57,7 @@ import numpy as np
 from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
+from dem_taichi.failures import BlowUpError, CapacityError, blowup_error, runaway_kinetic_energy
 from dem_taichi.kernels import layout as L
 from dem_taichi.measures import Measures, history_record
 from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
@@ -73,14 +74,6 @@ __all__ = [
     "BlowUpError",
     "CapacityError",
 ]
-
-
-class BlowUpError(RuntimeError):
-    """The run became unstable; the message names the likely cause and the fix."""
-
-
-class CapacityError(RuntimeError):
-    """An array capacity could not be grown; the message says what to set."""
 
 
 @dataclass(frozen=True)
@@ -313,22 +306,9 @@ class Simulation:
         self.capacity = capacity
 
     def _raise_blowup(self, flags: np.ndarray, step_offset: int) -> None:
-        code, index = int(flags[L.F_BLOWUP]), int(flags[L.F_BLOWUP_INDEX])
         step = self.step + step_offset + int(flags[L.F_STEPS])
-        safety = self.scene.integration.dt_safety
-        fix = f"reduce [integration] dt_safety from {safety:g} to <= {round(safety * 0.67, 3):g}"
-        if code == L.BLOWUP_NONFINITE:
-            raise BlowUpError(
-                f"non-finite position or velocity of rod {index} at step {step}: the time step is "
-                f"too large for the stiffest interaction or a parameter is invalid; {fix}"
-            )
-        bound = self.scene.integration.max_overlap
-        raise BlowUpError(
-            f"overlap beyond the bound max_overlap = {bound:g} d at disc {index}, step {step}: "
-            f"contacts are too soft for the loading or the time step is too large; {fix}, lower "
-            "the strain rate ([control] inertial_number_max or compression_strain_rate) or raise "
-            "[contact] k_n"
-        )
+        code, index = int(flags[L.F_BLOWUP]), int(flags[L.F_BLOWUP_INDEX])
+        raise blowup_error(code, index, step, self.scene.integration)
 
     def _check_kinetic_energy(self) -> None:
         v = self.a["vel"].to_numpy().astype(float)
@@ -336,13 +316,7 @@ class Simulation:
         ke = 0.5 * self.geometry.mass * np.sum(v * v) + 0.5 * self.geometry.inertia * np.sum(w * w)
         limit = self.scene.integration.max_kinetic_energy_per_rod * self.n_rods
         if not math.isfinite(ke) or ke > limit:
-            safety = self.scene.integration.dt_safety
-            raise BlowUpError(
-                f"runaway kinetic energy {ke:.3g} > {limit:.3g} (max_kinetic_energy_per_rod x "
-                f"n_rods) at step {self.step}: the integration is unstable; reduce "
-                f"[integration] dt_safety from {safety:g} to <= {round(safety * 0.67, 3):g} or "
-                "raise local_damping / e_n damping"
-            )
+            raise runaway_kinetic_energy(ke, limit, self.step, self.scene.integration)
 
     # ------------------------------------------------------------------------------------------
     # stepping
