@@ -11,7 +11,8 @@ difference to the rigid rods (the packing noise of a seed cancels in it). Unstab
     python benchmarks/stiffness_anisotropy_replicas.py --group paper=DIR,DIR,DIR \\
         [--group paper_kt1=DIR,DIR] [--out benchmarks/results]
 
-Each DIR holds a ``stiffness_anisotropy_matrix.csv``. Writes
+Each DIR holds a ``stiffness_anisotropy_matrix.csv`` (or is such a csv file, e.g. the paper-size
+runs kept in ``benchmarks/results/stiffness_anisotropy_runs/``). Writes
 ``<out>/stiffness_anisotropy_replicas.md`` and ``.png``.
 """
 
@@ -118,7 +119,7 @@ def summarise(groups: dict[str, list[Path]], only: tuple[str, ...] = ()) -> tupl
     for group, folders in groups.items():
         runs = [run_findings(read_matrix(f)) for f in folders]
         names = [n for n in runs[0] if not only or n in only]
-        names_ = ", ".join(f.parent.name if f.name == "matrix" else f.name for f in folders)
+        names_ = ", ".join(f.parent.name if f.name == "matrix" else f.stem for f in folders)
         lines += [f"## {group}: {len(folders)} runs ({names_})", ""]
         head = (
             ["variant"]
@@ -220,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         if not name or not folders:
             parser.error(f"--group {spec!r}: expected NAME=DIR,DIR,...")
         for f in folders:
-            if not (f / "stiffness_anisotropy_matrix.csv").is_file():
+            if not (f.is_file() or (f / "stiffness_anisotropy_matrix.csv").is_file()):
                 parser.error(
                     f"{f}: no stiffness_anisotropy_matrix.csv (run stiffness_anisotropy.py)"
                 )
