@@ -281,6 +281,11 @@ def _fmt(x, digits=3):
     return "nan" if not np.isfinite(x) else f"{x:.{digits}g}"
 
 
+def _header(head: list[str]) -> list[str]:
+    """The two header lines of a markdown table."""
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+
+
 def _cell(row: dict, key: str) -> str:
     """A modulus cell, or "unst." where the frozen network has negative modes."""
     return _fmt(row[key]) if _stable(row) else f"unst. ({row['n_negative']})"
@@ -303,8 +308,7 @@ def markdown(rows: list[dict], dyn: list[dict], run_dir: Path) -> str:
         "",
     ]
     head = ["state", "p", "fabric", "Σlx²/Σly²", "affine"] + names
-    out.append("| " + " | ".join(head) + " |")
-    out.append("|" + "---|" * len(head))
+    out += _header(head)
     for s in states:
         r0 = by[(s, names[0])]
         cells = [
@@ -317,8 +321,7 @@ def markdown(rows: list[dict], dyn: list[dict], run_dir: Path) -> str:
         out.append("| " + " | ".join(cells) + " |")
     out += ["", "E_v / E_v(rigid) (how much softer vertically than today's rigid rods)", ""]
     head = ["state"] + names
-    out.append("| " + " | ".join(head) + " |")
-    out.append("|" + "---|" * len(head))
+    out += _header(head)
     for s in states:
         out.append(
             "| " + " | ".join([s] + [_cell(by[(s, n)], "e_v_over_rigid") for n in names]) + " |"
@@ -334,8 +337,7 @@ def markdown(rows: list[dict], dyn: list[dict], run_dir: Path) -> str:
         "p-exponent of E_v (iso)",
         "unstable states",
     ]
-    out.append("| " + " | ".join(head) + " |")
-    out.append("|" + "---|" * len(head))
+    out += _header(head)
     summary = variant_summary(rows)
     for n in names:
         s = summary[n]
@@ -358,8 +360,7 @@ def markdown(rows: list[dict], dyn: list[dict], run_dir: Path) -> str:
             "relaxed",
             "s",
         ]
-        out.append("| " + " | ".join(head) + " |")
-        out.append("|" + "---|" * len(head))
+        out += _header(head)
         for d in dyn:
             out.append(
                 f"| {d['state']} | {d['modulus']} | {d['amplitude']:.0e} | {_fmt(d['plus'], 5)} | "

@@ -18,25 +18,19 @@ from dem_taichi.flexible_response import (
     three_point_compliance,
 )
 from dem_taichi.linear_response import StiffnessVariant, linear_response
-from tests.dem_taichi.test_linear_response import deform, minimise_energy, random_rods, relax
+from tests.dem_taichi.test_linear_response import build_friction_network, build_frictionless_network
 
 BONDS = BondStiffness(normal=1.3e3, shear=4.1e2, bending=70.0)
 
 
 @pytest.fixture(scope="module")
 def frictionless_network():
-    """12 acidic 3-disc rods relaxed at fixed cell (as in test_linear_response)."""
-    snap = minimise_energy(random_rods(10, 3, seed=1, fraction=0.95, charge=(1, -1, 1)))
-    return relax(snap, snap)
+    return build_frictionless_network()
 
 
 @pytest.fixture(scope="module")
 def friction_network(frictionless_network):
-    """With loaded tangential springs: sheared by 2e-3 in steps and re-relaxed (μ = 10)."""
-    snap = dataclasses.replace(frictionless_network, k_t=400.0, mu=10.0)
-    for _ in range(4):
-        snap = relax(snap, deform(snap, np.array([[0.0, 5e-4], [0.0, 0.0]]), change_area=False))
-    return snap
+    return build_friction_network(frictionless_network)
 
 
 def bond_energy(x_g, theta_g, x_h, theta_h, rest, lam, bonds):

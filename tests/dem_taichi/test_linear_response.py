@@ -186,21 +186,29 @@ def probe_tangent(snap, free_sliding=False, h=1e-6):
     return np.stack(columns, axis=1)  # (4 flattened σ, 4 flattened G)
 
 
-@pytest.fixture(scope="module")
-def frictionless_network():
+def build_frictionless_network():
     """12 acidic 3-disc rods relaxed at fixed cell: contacts, repulsive and attractive pairs."""
     snap = minimise_energy(random_rods(10, 3, seed=1, fraction=0.95, charge=(1, -1, 1)))
     return relax(snap, snap)
 
 
-@pytest.fixture(scope="module")
-def friction_network(frictionless_network):
+def build_friction_network(frictionless):
     """The frictionless network with k_t switched on, sheared by 2e-3 in steps and re-relaxed:
     an equilibrium with loaded tangential springs (none at the cap, μ = 10)."""
-    snap = dataclasses.replace(frictionless_network, k_t=400.0, mu=10.0)
+    snap = dataclasses.replace(frictionless, k_t=400.0, mu=10.0)
     for _ in range(4):
         snap = relax(snap, deform(snap, np.array([[0.0, 5e-4], [0.0, 0.0]]), change_area=False))
     return snap
+
+
+@pytest.fixture(scope="module")
+def frictionless_network():
+    return build_frictionless_network()
+
+
+@pytest.fixture(scope="module")
+def friction_network(frictionless_network):
+    return build_friction_network(frictionless_network)
 
 
 # --------------------------------------------------------------------------------------------
