@@ -54,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dem_taichi import forcelaw
 from dem_taichi.anisotropy import network_anisotropy
 from dem_taichi.flexible_response import BondStiffness, flexible_response
 from dem_taichi.linear_response import StiffnessVariant, linear_response
@@ -174,15 +175,8 @@ def _is_stable(r) -> bool:
 def matrix_rows(label, path, increment, snap, measures, variant_list) -> list[dict]:
     """E_oed,v, E_oed,h of every variant on one snapshot."""
     aniso = network_anisotropy(snap)
-    pairs_branch = (
-        snap.rod_position[snap.pair_i // snap.n_spheres]
-        - snap.rod_position[snap.pair_j // snap.n_spheres]
-        - snap.pair_shift
-    )
-    from dem_taichi import forcelaw
-
-    contact = forcelaw.pair_forces(snap).in_contact
-    lx2, ly2 = np.sum(pairs_branch[contact] ** 2, axis=0)
+    pairs = forcelaw.pair_forces(snap)
+    lx2, ly2 = np.sum(pairs.branch[pairs.in_contact] ** 2, axis=0)
     rows, reference = [], None
     for v in variant_list:
         t0 = time.perf_counter()

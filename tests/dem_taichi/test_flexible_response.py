@@ -18,7 +18,11 @@ from dem_taichi.flexible_response import (
     three_point_compliance,
 )
 from dem_taichi.linear_response import StiffnessVariant, linear_response
-from tests.dem_taichi.test_linear_response import build_friction_network, build_frictionless_network
+from tests.dem_taichi.test_linear_response import (
+    build_friction_network,
+    build_frictionless_network,
+    on_the_cap,
+)
 
 BONDS = BondStiffness(normal=1.3e3, shear=4.1e2, bending=70.0)
 
@@ -148,15 +152,7 @@ def test_rigid_limit_equals_rigid_response(frictionless_network, friction_networ
 
 
 def test_rigid_limit_with_sliding_contacts(friction_network):
-    pairs = forcelaw.pair_forces(friction_network)
-    ratio = np.where(
-        pairs.in_contact,
-        np.linalg.norm(pairs.tangential_force, axis=1) / np.maximum(pairs.contact_force, 1e-300),
-        0.0,
-    )
-    snap = dataclasses.replace(
-        friction_network, mu=float(ratio.max()) * (1 + 1e-12), sliding=ratio == ratio.max()
-    )
+    snap = on_the_cap(friction_network)
     error, _ = rigid_limit_error(snap, "free")
     assert error < 1e-6
 

@@ -404,16 +404,22 @@ def test_stuck_friction_stiffness_equals_relaxed_probe(friction_network):
     np.testing.assert_array_equal(free.stiffness, response.stiffness)
 
 
-def test_sliding_contact_on_the_cap_equals_relaxed_probe(friction_network):
-    pairs = forcelaw.pair_forces(friction_network)
+def on_the_cap(snap):
+    """``snap`` with μ lowered until its most loaded contact sits on the Coulomb cap (flagged
+    sliding), the others still stuck."""
+    pairs = forcelaw.pair_forces(snap)
     ratio = np.where(
         pairs.in_contact,
         np.linalg.norm(pairs.tangential_force, axis=1) / np.maximum(pairs.contact_force, 1e-300),
         0.0,
     )
-    snap = dataclasses.replace(
-        friction_network, mu=float(ratio.max()) * (1 + 1e-12), sliding=ratio == ratio.max()
+    return dataclasses.replace(
+        snap, mu=float(ratio.max()) * (1 + 1e-12), sliding=ratio == ratio.max()
     )
+
+
+def test_sliding_contact_on_the_cap_equals_relaxed_probe(friction_network):
+    snap = on_the_cap(friction_network)
     free = linear_response(snap, "free")
     assert_tangent_matches_probe(free, probe_tangent(snap, free_sliding=True))
     stuck = linear_response(snap, "stuck")
