@@ -2,9 +2,10 @@
 
 A branch is a path, or chain of paths, from A: ``"isotropic"`` (A→B), ``"k0"`` (A→C, then C→B
 when ``run_unloading``), ``"radial <k> <η>"``. :func:`run_branch` runs one from A's checkpoint
-in its own process and hands back a :class:`BranchOutcome`; :func:`run_branches_in_processes`
-runs them in spawned processes (Taichi's runtime must not be forked) and merges the outcomes in
-the order of the serial run, which they equal (the serial engine is deterministic).
+in its own process and hands back a :class:`BranchOutcome` (its history records and its
+:class:`RunLog`); :func:`run_branches_in_processes` runs them in spawned processes (Taichi's
+runtime must not be forked) and merges the outcomes into the run's writers and log in the order
+of the serial run, which they equal (the serial engine is deterministic).
 """
 
 from __future__ import annotations
@@ -12,11 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import ProtocolConfig, probing_settings, protocol_settings
-from dem_taichi.protocol_records import ProtocolError, RelaxedState, StageRecord
+from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog
 
 __all__ = [
     "branch_names",
@@ -65,19 +64,12 @@ class _RecordList(list):
 @dataclass
 class BranchOutcome:
     """What one branch run in its own process hands back to
-    :func:`dem_taichi.protocol.run_protocol`."""
+    :func:`dem_taichi.protocol.run_protocol`: its history records and its log (without A,
+    which the run's log holds)."""
 
     branch: str
     history: list[dict]
-    path_states: list[RelaxedState]
-    states: dict[str, RelaxedState]
-    stages: dict[str, StageRecord]
-    configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
-    checkpoints: dict[str, str]
-    probes: list
-    probing_seconds: float
-    probing_dynamic_seconds: float
-    probing_linear_seconds: float
+    log: RunLog
 
 
 def run_branch(
@@ -98,47 +90,31 @@ def run_branch(
     sim = Simulation.from_checkpoint(checkpoint_A, arch=arch, precision=precision)
     config, probing = protocol_settings(sim.scene), probing_settings(sim.scene)
     history = _RecordList()
-    recorder = ProbeRecorder(probing, config)
-    runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress)
+    log = RunLog()
+    recorder = ProbeRecorder(probing, config, log)
+    runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress, log=log)
     runner.out_dir = Path(out_dir) if out_dir is not None else None
     runner.state_A = sim.get_state()
-    runner.states["A"] = state_A
+    log.states["A"] = state_A
     run_branch_on(runner, branch)
-    return BranchOutcome(
-        branch=branch,
-        history=list(history),
-        path_states=runner.path_states,
-        states={k: v for k, v in runner.states.items() if k != "A"},
-        stages=runner.stages,
-        configurations=runner.configurations,
-        checkpoints=runner.checkpoints,
-        probes=recorder.results,
-        probing_seconds=recorder.seconds,
-        probing_dynamic_seconds=recorder.dynamic_seconds,
-        probing_linear_seconds=recorder.linear_seconds,
-    )
+    del log.states["A"]
+    return BranchOutcome(branch=branch, history=list(history), log=log)
 
 
-def _merge_branch(runner, recorder, history, relaxed, outcome: BranchOutcome) -> None:
+def _merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
     for record in outcome.history:
         history.append(record)
-    for state in outcome.path_states:
+    for state in outcome.log.path_states:
         relaxed.append(state.measures)
-    runner.path_states.extend(outcome.path_states)
-    runner.states.update(outcome.states)
-    runner.stages.update(outcome.stages)
-    runner.configurations.update(outcome.configurations)
-    runner.checkpoints.update(outcome.checkpoints)
-    recorder.results.extend(outcome.probes)
-    recorder.seconds += outcome.probing_seconds
-    recorder.dynamic_seconds += outcome.probing_dynamic_seconds
-    recorder.linear_seconds += outcome.probing_linear_seconds
+    runner.log.merge(outcome.log)
 
 
 def run_branches_in_processes(
-    runner, recorder, history, relaxed, branches, workers, arch, precision, progress
+    runner, history, relaxed, branches, workers, arch, precision, progress
 ) -> None:
-    """Run the branches from A in ``workers`` spawned processes and merge them in order.
+    """Run the branches from A in ``workers`` spawned processes and merge them in order into
+    ``history``, ``relaxed`` (the writers of history.nc and relaxed_states.nc) and
+    ``runner.log`` (where the probe recorder of the run writes too).
 
     A branch that fails does not lose the others: the finished ones are merged (their records
     reach history.nc and relaxed_states.nc), then the first failure is raised.
@@ -162,7 +138,7 @@ def run_branches_in_processes(
         errors = []
         for branch, future in zip(branches, futures, strict=True):
             try:
-                _merge_branch(runner, recorder, history, relaxed, future.result())
+                _merge_branch(runner, history, relaxed, future.result())
             except Exception as exc:  # noqa: BLE001 - keep the other branches, raise below
                 errors.append((branch, exc))
     if errors:

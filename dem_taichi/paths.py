@@ -41,7 +41,7 @@ import numpy as np
 
 from dem_taichi.analysis import Transition, detect_transition
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
-from dem_taichi.protocol_records import ProtocolError, RelaxedState, StageRecord
+from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.servo import StressServo
 
@@ -54,6 +54,9 @@ class ProtocolRunner:
     Usually driven by :func:`dem_taichi.protocol.run_protocol`; the stage methods can be called
     one by one (tests).
     ``probe_hook(runner, state)`` is called at every relaxed path state that should be probed.
+    What the stages record goes to ``log`` (a new :class:`RunLog` unless given; the protocol
+    gives the probe recorder's); its entries also read as attributes of the runner
+    (``runner.stages``, ``runner.states``, ``runner.path_states``...).
     """
 
     def __init__(
@@ -65,6 +68,7 @@ class ProtocolRunner:
         relaxed_writer=None,
         probe_hook: Callable[[ProtocolRunner, RelaxedState], None] | None = None,
         progress: bool = False,
+        log: RunLog | None = None,
     ) -> None:
         self.sim = sim
         self.config = config
@@ -73,19 +77,42 @@ class ProtocolRunner:
         self.relaxed_writer = relaxed_writer
         self.probe_hook = probe_hook
         self.progress = progress
-        self.stages: dict[str, StageRecord] = {}
-        self.states: dict[str, RelaxedState] = {}
-        self.path_states: list[RelaxedState] = []
+        self.log = log if log is not None else RunLog()
         self.compression_sequence: list[dict] = []
-        self.transition: Transition | None = None
-        self.transition_details: dict = {}
         self.state_A: dict | None = None
         self.state_C: dict | None = None
-        self.configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._since_output = 0
         self.out_dir: Path | None = None
-        self.checkpoints: dict[str, str] = {}
         self.stress_servo = StressServo(sim, config, self._relax, self._output, self._say)
+
+    # -- the log's entries, read here -------------------------------------------------------
+    @property
+    def stages(self) -> dict[str, StageRecord]:
+        return self.log.stages
+
+    @property
+    def states(self) -> dict[str, RelaxedState]:
+        return self.log.states
+
+    @property
+    def path_states(self) -> list[RelaxedState]:
+        return self.log.path_states
+
+    @property
+    def configurations(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        return self.log.configurations
+
+    @property
+    def checkpoints(self) -> dict[str, str]:
+        return self.log.checkpoints
+
+    @property
+    def transition(self) -> Transition | None:
+        return self.log.transition
+
+    @property
+    def transition_details(self) -> dict:
+        return self.log.transition_details
 
     @property
     def servo_times(self) -> dict[str, float]:
@@ -98,7 +125,7 @@ class ProtocolRunner:
             print(text, file=sys.stderr, flush=True)
 
     def _record(self, stage: str) -> StageRecord:
-        return self.stages.setdefault(stage, StageRecord(stage))
+        return self.log.stage(stage)
 
     def _relax(self, stage: str, give_up=None) -> tuple[dict, bool]:
         c = self.config
@@ -124,15 +151,16 @@ class ProtocolRunner:
             label, stage, increment, tuple(float(t) for t in targets), dict(measures), relaxed,
             iterations,
         )  # fmt: skip
-        self.path_states.append(state)
+        log = self.log
+        log.path_states.append(state)
         self._record(stage).n_relaxed_states += 1
         if label:
-            self.states[label] = state
+            log.states[label] = state
             sim = self.sim
-            self.configurations[label] = (sim.rod_positions(), sim.rod_angles(), sim.cell_lengths)
+            log.configurations[label] = (sim.rod_positions(), sim.rod_angles(), sim.cell_lengths)
             if self.config.save_states and self.out_dir is not None:
                 path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
-                self.checkpoints[label] = str(sim.save_checkpoint(path))
+                log.checkpoints[label] = str(sim.save_checkpoint(path))
         elif (
             self.config.save_path_states and self.out_dir is not None and stage != "isotropic_to_A"
         ):
@@ -141,7 +169,7 @@ class ProtocolRunner:
                 sx, sy = targets
                 key = f"radial_eta{2.0 * (sy - sx) / (sx + sy):+.3f}_{increment:03d}"
             path = self.out_dir / f"path_{key}.npz"
-            self.checkpoints[f"path_{key}"] = str(self.sim.save_checkpoint(path))
+            log.checkpoints[f"path_{key}"] = str(self.sim.save_checkpoint(path))
         if self.relaxed_writer is not None:
             self.relaxed_writer.append(measures)
         return state
@@ -240,10 +268,10 @@ class ProtocolRunner:
         pressure = np.array([e["mean_stress"] for e in relaxed_seq])
         coordination = np.array([e["mechanical_coordination_number"] for e in relaxed_seq])
         transition = detect_transition(pressure, coordination, tol, c.coordination_min)
-        self.transition = transition
+        self.log.transition = transition
         cand_index = next(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
         last_cand = max(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
-        self.transition_details = {
+        self.log.transition_details = {
             "rule": transition.rule
             + f"; confirmed over {c.confirm_increments} further relaxed increments; "
             "increments bisected (sample restored to the previous relaxed state, increment "

@@ -37,6 +37,7 @@ import xarray as xr
 
 from dem_taichi.analysis import Plateau, elastic_plateau
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+from dem_taichi.protocol_records import RunLog
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 
 __all__ = [
@@ -252,18 +253,38 @@ def probe_state(
 class ProbeRecorder:
     """Probe hook of :class:`dem_taichi.paths.ProtocolRunner`: probes and keeps the results.
 
-    Times are kept in total, per method and per stage (the protocol subtracts them from the
-    stage wall times, so stage times and probing time add up).
+    The results and the probing times (in total, per method and per stage; the paths time their
+    stages without the probes, so stage times and probing time add up) go to ``log``, the run's
+    :class:`dem_taichi.protocol_records.RunLog` (a new one unless given); ``results``,
+    ``seconds``, ``dynamic_seconds``, ``linear_seconds`` and ``seconds_by_stage`` read them.
     """
 
-    def __init__(self, probing: ProbingConfig, protocol: ProtocolConfig) -> None:
+    def __init__(
+        self, probing: ProbingConfig, protocol: ProtocolConfig, log: RunLog | None = None
+    ) -> None:
         self.probing = probing
         self.protocol = protocol
-        self.results: list[ProbeResult] = []
-        self.seconds = 0.0
-        self.dynamic_seconds = 0.0
-        self.linear_seconds = 0.0
-        self.seconds_by_stage: dict[str, float] = {}
+        self.log = log if log is not None else RunLog()
+
+    @property
+    def results(self) -> list[ProbeResult]:
+        return self.log.probes
+
+    @property
+    def seconds(self) -> float:
+        return self.log.probing_seconds
+
+    @property
+    def dynamic_seconds(self) -> float:
+        return self.log.probing_dynamic_seconds
+
+    @property
+    def linear_seconds(self) -> float:
+        return self.log.probing_linear_seconds
+
+    @property
+    def seconds_by_stage(self) -> dict[str, float]:
+        return self.log.probing_seconds_by_stage
 
     @property
     def amplitudes(self) -> tuple[float, ...]:
@@ -276,12 +297,14 @@ class ProbeRecorder:
             runner.sim, self.probing, self.protocol, label, state.stage, state.increment,
             state.measures,
         )  # fmt: skip
-        self.results.append(result)
         seconds = time.perf_counter() - t0
-        self.seconds += seconds
-        self.dynamic_seconds += result.dynamic_seconds
-        self.linear_seconds += result.linear_seconds
-        self.seconds_by_stage[state.stage] = self.seconds_by_stage.get(state.stage, 0.0) + seconds
+        log = self.log
+        log.probes.append(result)
+        log.probing_seconds += seconds
+        log.probing_dynamic_seconds += result.dynamic_seconds
+        log.probing_linear_seconds += result.linear_seconds
+        by_stage = log.probing_seconds_by_stage
+        by_stage[state.stage] = by_stage.get(state.stage, 0.0) + seconds
         runner._say(
             f"  probe {label}: E_v dyn={result.modulus('e_oed_v', 'dynamic'):.5g} "
             f"lin={result.modulus('e_oed_v', 'linear'):.5g}; E_h dyn="

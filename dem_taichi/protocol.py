@@ -61,6 +61,7 @@ from dem_taichi.protocol_records import (
     ProtocolError,
     ProtocolResult,
     RelaxedState,
+    RunLog,
     StageRecord,
     _jsonable,
 )
@@ -73,6 +74,7 @@ __all__ = [
     "RelaxedState",
     "StageRecord",
     "ProtocolResult",
+    "RunLog",
     "ProtocolRunner",
     "relax",
     "apply_strain",
@@ -136,6 +138,7 @@ def run_protocol(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
+    log = RunLog()  # the one log of the run: the runner and the probe recorder write it
     result = ProtocolResult(
         out_dir=out,
         scene_name=scene.scene.name,
@@ -144,6 +147,7 @@ def run_protocol(
         arch=arch,
         precision=precision,
         stress_scale_kpa=config.stress_scale_kpa,
+        log=log,
     )
     attrs = provenance_attrs(
         scene.source_text or scene_to_toml(scene),
@@ -162,12 +166,12 @@ def run_protocol(
         "cell at the start of the run until state A, then the cell at state A"
     )
     sim = Simulation(scene, arch=arch, precision=precision)
-    recorder = ProbeRecorder(probing, config)
+    recorder = ProbeRecorder(probing, config, log)
     history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20)
     relaxed_attrs = dict(attrs, title=attrs["title"].replace("history", "relaxed path states"))
     relaxed = HistoryWriter(out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1)
     runner = ProtocolRunner(
-        sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress
+        sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress, log=log
     )
     runner.out_dir = out
     branches = branch_names(config)
@@ -179,28 +183,19 @@ def run_protocol(
                 run_branch_on(runner, branch)
         else:
             run_branches_in_processes(
-                runner, recorder, history, relaxed, branches, workers, arch, precision, progress
+                runner, history, relaxed, branches, workers, arch, precision, progress
             )
     finally:
         history.close()
         relaxed.close()
-    result.transition = runner.transition
-    result.transition_details = runner.transition_details
-    result.states = runner.states
-    result.path_states = runner.path_states
-    result.stages = runner.stages
-    result.probes = recorder.results
-    result.probing_seconds = recorder.seconds
-    result.probing_dynamic_seconds = recorder.dynamic_seconds
-    result.probing_linear_seconds = recorder.linear_seconds
     # stage wall times exclude the probes (timed apart by the recorder)
-    for label, path in runner.checkpoints.items():
+    for label, path in log.checkpoints.items():
         result.files[f"state_{label}"] = path
     result.files["history"] = str(out / "history.nc")
     result.files["relaxed_states"] = str(out / "relaxed_states.nc")
     # configurations at the labelled states, taken when they were reached
-    for label, state in runner.states.items():
-        positions, angles, lengths = runner.configurations[label]
+    for label, state in log.states.items():
+        positions, angles, lengths = log.configurations[label]
         m = state.measures
         geo = sim.geometry
         path = out / f"configuration_{_file_label(label)}.nc"
@@ -226,9 +221,9 @@ def run_protocol(
             },
         )
         result.files[f"configuration_{label}"] = str(path)
-    if recorder.results:
+    if log.probes:
         probe_attrs = dict(attrs, title="DEM elastic probes at states of the loading paths")
-        ds = probes_dataset(recorder.results, recorder.amplitudes, probing, probe_attrs)
+        ds = probes_dataset(log.probes, recorder.amplitudes, probing, probe_attrs)
         write_dataset(out / "probes.nc", ds)
         result.files["probes"] = str(out / "probes.nc")
     result.workers = min(workers, len(branches)) if len(branches) > 1 else 1

@@ -1,9 +1,17 @@
-"""What a protocol run records: relaxed path states, stage records, the run's result.
+"""What a protocol run records: relaxed path states, stage records, the run's log and result.
 
 :class:`RelaxedState` (one relaxed state of a path, with its measures and targets),
-:class:`StageRecord` (wall time and quasi-static indicators of a stage), :class:`ProtocolResult`
-(everything :func:`dem_taichi.protocol.run_protocol` did, with its JSON summary) and
-:class:`ProtocolError`. Plain data, no engine.
+:class:`StageRecord` (wall time and quasi-static indicators of a stage), :class:`RunLog` (the
+one log of a run: stage records, relaxed states, configurations, checkpoints, probes and their
+times, the transition), :class:`ProtocolResult` (everything
+:func:`dem_taichi.protocol.run_protocol` did, its log with the files written, and its JSON
+summary) and :class:`ProtocolError`. Plain data, no engine.
+
+Who writes the log: :class:`dem_taichi.paths.ProtocolRunner` (stages, states, configurations,
+checkpoints, transition) and :class:`dem_taichi.probing.ProbeRecorder` (probes and their times)
+write into the same :class:`RunLog`; a branch run in its own process hands its log back
+(:class:`dem_taichi.branches.BranchOutcome`) and :meth:`RunLog.merge` adds it to the run's;
+the :class:`ProtocolResult` reads it.
 
 Symbols: I inertial number, UFR unbalanced-force ratio (definitions: dem_taichi.io.schema).
 """
@@ -20,7 +28,7 @@ import numpy as np
 from dem_taichi.analysis import Transition
 from dem_taichi.measures import Measures
 
-__all__ = ["ProtocolError", "RelaxedState", "StageRecord", "ProtocolResult"]
+__all__ = ["ProtocolError", "RelaxedState", "StageRecord", "RunLog", "ProtocolResult"]
 
 
 class ProtocolError(RuntimeError):
@@ -74,8 +82,62 @@ class StageRecord:
 
 
 @dataclass
+class RunLog:
+    """The one log of a protocol run, filled as the run goes.
+
+    ``stages`` stage label → :class:`StageRecord`; ``states`` labelled relaxed states (A, B, C,
+    B', R<k>_end) in the order reached; ``path_states`` every relaxed path state in order;
+    ``configurations`` label → (rod positions, rod angles, cell lengths) when the state was
+    reached; ``checkpoints`` name → path of the saved state files; ``probes`` the
+    :class:`dem_taichi.probing.ProbeResult` of every probed state in order, with the probing
+    wall times (total, dynamic sweeps, linear responses, per stage); ``transition`` and
+    ``transition_details`` the fluid–solid transition (state A) and how it was found.
+    """
+
+    stages: dict[str, StageRecord] = field(default_factory=dict)
+    states: dict[str, RelaxedState] = field(default_factory=dict)
+    path_states: list[RelaxedState] = field(default_factory=list)
+    configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict
+    )
+    checkpoints: dict[str, str] = field(default_factory=dict)
+    probes: list = field(default_factory=list)
+    probing_seconds: float = 0.0
+    probing_dynamic_seconds: float = 0.0
+    probing_linear_seconds: float = 0.0
+    probing_seconds_by_stage: dict[str, float] = field(default_factory=dict)
+    transition: Transition | None = None
+    transition_details: dict = field(default_factory=dict)
+
+    def stage(self, name: str) -> StageRecord:
+        """The record of stage ``name``, created empty on first use."""
+        return self.stages.setdefault(name, StageRecord(name))
+
+    def merge(self, branch: RunLog) -> None:
+        """Add the log of a branch from A run in its own process after what is here (branches
+        are merged in the order of the serial run). The branch's stage records replace any of
+        the same name; its states must not repeat A, which this log already holds."""
+        self.path_states.extend(branch.path_states)
+        self.states.update(branch.states)
+        self.stages.update(branch.stages)
+        self.configurations.update(branch.configurations)
+        self.checkpoints.update(branch.checkpoints)
+        self.probes.extend(branch.probes)
+        self.probing_seconds += branch.probing_seconds
+        self.probing_dynamic_seconds += branch.probing_dynamic_seconds
+        self.probing_linear_seconds += branch.probing_linear_seconds
+        for stage, seconds in branch.probing_seconds_by_stage.items():
+            by_stage = self.probing_seconds_by_stage
+            by_stage[stage] = by_stage.get(stage, 0.0) + seconds
+
+
+@dataclass
 class ProtocolResult:
-    """What :func:`run_protocol` did: files, states, the transition, timings."""
+    """What :func:`run_protocol` did: the run's :class:`RunLog`, the files written, timings.
+
+    The log's entries read as attributes of the result (``result.states``,
+    ``result.path_states``, ``result.stages``, ``result.probes``, ``result.probing_seconds``...).
+    """
 
     out_dir: Path
     scene_name: str
@@ -83,19 +145,47 @@ class ProtocolResult:
     n_rods: int
     arch: str
     precision: str
-    transition: Transition | None = None
-    transition_details: dict = field(default_factory=dict)
-    states: dict[str, RelaxedState] = field(default_factory=dict)
-    path_states: list[RelaxedState] = field(default_factory=list)
-    stages: dict[str, StageRecord] = field(default_factory=dict)
-    probes: list = field(default_factory=list)
-    probing_seconds: float = 0.0
-    probing_dynamic_seconds: float = 0.0
-    probing_linear_seconds: float = 0.0
+    log: RunLog = field(default_factory=RunLog)
     total_seconds: float = 0.0
     files: dict[str, str] = field(default_factory=dict)
     stress_scale_kpa: float = 1.0
     workers: int = 1
+
+    @property
+    def transition(self) -> Transition | None:
+        return self.log.transition
+
+    @property
+    def transition_details(self) -> dict:
+        return self.log.transition_details
+
+    @property
+    def states(self) -> dict[str, RelaxedState]:
+        return self.log.states
+
+    @property
+    def path_states(self) -> list[RelaxedState]:
+        return self.log.path_states
+
+    @property
+    def stages(self) -> dict[str, StageRecord]:
+        return self.log.stages
+
+    @property
+    def probes(self) -> list:
+        return self.log.probes
+
+    @property
+    def probing_seconds(self) -> float:
+        return self.log.probing_seconds
+
+    @property
+    def probing_dynamic_seconds(self) -> float:
+        return self.log.probing_dynamic_seconds
+
+    @property
+    def probing_linear_seconds(self) -> float:
+        return self.log.probing_linear_seconds
 
     def summary(self) -> dict:
         """JSON-serialisable summary (also written to ``summary.json``)."""
