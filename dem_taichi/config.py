@@ -8,7 +8,10 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
 
 ``[scene]``         name, seed, description
 ``[particles]``     n_rods, n_spheres, diameter d, spacing, disc_mass m, initial_area_fraction,
-                    initial_speed (rms of the random gas velocity components)
+                    initial_speed (rms of the random gas velocity components), rod_model
+                    (``"rigid"`` clumps, default, or ``"bonded"`` chains of disc bodies)
+``[bonds]``         bonded rods only (model.md §1.7): normal, shear, bending (k_bn/k_n,
+                    k_bt/k_n, κ_b/(k_n d²)), damping_ratio, breakage_force
 ``[contact]``       k_n, e_n *or* gamma_n, restitution_model (discrete|continuous), k_t, gamma_t,
                     mu, friction (on/off)
 ``[long_range]``    enabled, pattern (acidic|basic|neutral), f_max_edge, f_max_inner, k_a_edge,
@@ -68,6 +71,7 @@ __all__ = [
     "Scene",
     "SceneInfo",
     "Particles",
+    "Bonds",
     "Contact",
     "LongRange",
     "VanDerWaals",
@@ -104,8 +108,23 @@ class Particles(SceneSection):
     disc_mass: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
     initial_area_fraction: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
     initial_speed: float = field(default=0.01, metadata=_range(0.0, None))
+    rod_model: str = field(
+        default="rigid",
+        metadata=_choices(
+            "rigid",
+            "bonded",
+            doc="'rigid': each rod one rigid clump of discs (cheapest, larger Δt); 'bonded': "
+            "every disc a body, neighbours joined by elastic bonds ([bonds]), rods bend and "
+            "may break (the study's MercuryDPM model)",
+        ),
+    )
 
     def check(self) -> None:
+        if self.rod_model == "bonded" and self.n_spheres < 2:
+            raise SceneError(
+                f"[particles] rod_model = 'bonded' needs n_spheres >= 2 (a rod of one disc has "
+                f"no bonds); n_spheres = {self.n_spheres}"
+            )
         if self.spacing > self.diameter:
             raise SceneError(
                 f"[particles] spacing = {self.spacing} > diameter = {self.diameter}: "
@@ -139,6 +158,38 @@ class Contact(SceneSection):
     def check(self) -> None:
         if self.e_n is not None and self.gamma_n is not None:
             raise SceneError("[contact] give either e_n or gamma_n, not both")
+
+
+@dataclass(frozen=True)
+class Bonds(SceneSection):
+    """Intra-rod bonds of ``rod_model = "bonded"`` (model.md §1.7; law in
+    :mod:`dem_taichi.bonds`), as ratios to the contact stiffness k_n.
+
+    Defaults: k_bn = k_n and k_bt = 0.2 k_n (the scenes' k_t/k_n), κ_b = 0.3 k_n d² (the
+    stiffness-anisotropy experiments' range 0.3–1; 0.1 is at the buckling edge at p = 100);
+    damping ratio 0.2 (near the contacts' e_n = 0.5, ζ = 0.215); unbreakable.
+    """
+
+    SECTION = "bonds"
+    normal: float = field(
+        default=1.0, metadata=_range(0.0, None, lo_open=True, doc="k_bn / k_n (stretch)")
+    )
+    shear: float = field(
+        default=0.2, metadata=_range(0.0, None, lo_open=True, doc="k_bt / k_n (shear)")
+    )
+    bending: float = field(
+        default=0.3, metadata=_range(0.0, None, lo_open=True, doc="κ_b / (k_n d²) (bending)")
+    )
+    damping_ratio: float = field(
+        default=0.2,
+        metadata=_range(0.0, 1.0, doc="ζ of each bond mode, γ = 2ζ sqrt(k μ), μ = m/2 or I/2"),
+    )
+    breakage_force: float = field(
+        default=0.0,
+        metadata=_range(
+            0.0, None, doc="tension F_b at which a bond breaks for good (0: unbreakable)"
+        ),
+    )
 
 
 @dataclass(frozen=True)
@@ -197,6 +248,7 @@ class Output(SceneSection):
 _CORE_SECTIONS: dict[str, type[SceneSection]] = {
     "scene": SceneInfo,
     "particles": Particles,
+    "bonds": Bonds,
     "contact": Contact,
     "long_range": LongRange,
     "van_der_waals": VanDerWaals,
@@ -246,6 +298,7 @@ class Scene:
 
     scene: SceneInfo = field(default_factory=SceneInfo)
     particles: Particles = field(default_factory=Particles)
+    bonds: Bonds = field(default_factory=Bonds)
     contact: Contact = field(default_factory=Contact)
     long_range: LongRange = field(default_factory=LongRange)
     van_der_waals: VanDerWaals = field(default_factory=VanDerWaals)
@@ -282,9 +335,39 @@ class Scene:
         return contact_duration(self.contact.k_n, self.continuous_gamma_n, self.particles.disc_mass)
 
     @property
+    def bonded(self) -> bool:
+        """Whether the rods are bonded chains (``[particles] rod_model = "bonded"``)."""
+        return self.particles.rod_model == "bonded"
+
+    @property
+    def bond_parameters(self):
+        """The bonds' springs and dashpots (:class:`dem_taichi.bonds.BondParameters`)."""
+        from dem_taichi.bonds import BondParameters
+
+        p, b = self.particles, self.bonds
+        return BondParameters.from_ratios(
+            self.contact.k_n, p.diameter, p.spacing, p.disc_mass, b.normal, b.shear,
+            b.bending, b.damping_ratio, b.breakage_force,
+        )  # fmt: skip
+
+    @property
+    def bond_period(self) -> float:
+        """π/ω_max of one free bonded chain (inf for rigid rods): the bonds' analogue of t_c."""
+        if not self.bonded:
+            return math.inf
+        from dem_taichi.bonds import chain_max_frequency
+
+        p, bonds = self.particles, self.bond_parameters
+        omega = chain_max_frequency(
+            p.n_spheres, p.spacing, p.disc_mass, p.diameter, bonds.k_n, bonds.k_t, bonds.k_b
+        )
+        return math.pi / omega
+
+    @property
     def time_step(self) -> float:
-        """Δt = dt_safety × t_c (continuous-model t_c: the same for both restitution models)."""
-        return self.integration.dt_safety * self.contact_duration
+        """Δt = dt_safety × min(t_c, bond period) (continuous-model t_c: the same for both
+        restitution models; the bond period only for bonded rods)."""
+        return self.integration.dt_safety * min(self.contact_duration, self.bond_period)
 
     def replace(self, **sections: Any) -> Scene:
         """Copy with whole sections replaced or with ``section={"key": value}`` updates."""
@@ -336,6 +419,11 @@ def scene_from_dict(data: dict, source_text: str = "") -> Scene:
     core = {
         name: _load_section(cls, name, data.get(name, {})) for name, cls in _CORE_SECTIONS.items()
     }
+    if "bonds" in data and core["particles"].rod_model != "bonded":
+        raise SceneError(
+            "[bonds] is used only with [particles] rod_model = 'bonded' (this scene's rods are "
+            f"{core['particles'].rod_model!r}): remove [bonds] or set rod_model = 'bonded'"
+        )
     ext = {
         name: _load_section(cls, name, data[name])
         for name, cls in _EXTENSION_SECTIONS.items()
@@ -404,6 +492,8 @@ def scene_to_toml(scene: Scene) -> str:
     """Write the full scene (every key, defaults included) as TOML; round-trips exactly."""
     lines = []
     sections = {name: getattr(scene, name) for name in _CORE_SECTIONS}
+    if not scene.bonded:
+        del sections["bonds"]  # read only with bonded rods (and refused otherwise)
     sections.update(scene.extensions)
     for name, section in sections.items():
         lines.append(f"[{name}]")

@@ -8,9 +8,12 @@ the state dict and the arguments of every kernel launch: a kernel's array parame
 names of the arrays (:func:`kernel_parameters`), so no argument list is spelled by hand and two
 arrays cannot be swapped by position.
 
-Shape symbols: ``rods`` N, ``discs`` M = N n_s, ``spheres`` n_s (discs per rod), ``capacity`` K
-(neighbour-list entries per disc, grown on overflow), ``cells`` the side of the cell-list grid;
-integers are fixed sizes (the small arrays of :mod:`dem_taichi.kernels.layout`).
+Shape symbols: ``rods`` the bodies (N rigid rods, or the N n_s discs of bonded rods), ``discs``
+M = N n_s, ``spheres`` the discs per body (n_s, or 1 for bonded rods), ``species`` n_s (the
+places in a rod, for the charge pattern), ``capacity`` K (neighbour-list entries per disc, grown
+on overflow), ``cells`` the side of the cell-list grid; integers are fixed sizes (the small
+arrays of :mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of
+body b to b + 1 holds) is allocated for rigid rods too, never read there.
 
 Roles: ``state`` (the dynamical state, restored bit for bit), ``constant`` (set once from the
 scene), ``derived`` (recomputed from the state: disc positions), ``work`` (kernel scratch: cell
@@ -88,11 +91,12 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("cell_start", _I, ("cells", "cells"), "work"),
     DeviceArray("cell_items", _I, ("discs",), "work"),
     DeviceArray("disc_cell", _I, ("discs",), "work"),
-    DeviceArray("charge", _I, ("spheres",), "constant"),
-    DeviceArray("pair_table", _R, ("spheres", "spheres", 3), "constant"),
+    DeviceArray("charge", _I, ("species",), "constant"),
+    DeviceArray("pair_table", _R, ("species", "species", 3), "constant"),
     DeviceArray("cell", _R, (L.N_CELL,), "state", "cell"),
     DeviceArray("flags", _I, (L.N_FLAGS,), "state", "flags"),
     DeviceArray("params", _R, (L.N_PARAMS,), "state", "params"),
+    DeviceArray("bond_intact", _I, ("rods",), "state", "bond_intact"),
     DeviceArray("measures", _R, (L.N_MEASURES,), "output"),
     DeviceArray("rod_contacts", _I, ("rods",), "output"),
     DeviceArray("pair_out", _R, ("discs", "capacity", 4), "output"),

@@ -57,14 +57,23 @@ import numpy as np
 from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
+from dem_taichi.bonds import rod_axes, unwrapped_chains
 from dem_taichi.failures import BlowUpError, CapacityError, blowup_error, runaway_kinetic_energy
 from dem_taichi.kernels import layout as L
 from dem_taichi.measures import Measures, history_record
 from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
 from dem_taichi.runtime import ensure_runtime
-from dem_taichi.scene import GasState, generate_gas, pair_table, rod_geometry, species_parameters
+from dem_taichi.scene import (
+    GasState,
+    bodies_from_rods,
+    body_geometry,
+    generate_gas,
+    pair_table,
+    rod_geometry,
+    species_parameters,
+)
 from dem_taichi.snapshot import NetworkSnapshot
-from dem_taichi.state import convert_neighbour_list
+from dem_taichi.state import convert_neighbour_list, upgrade_state
 
 __all__ = [
     "AxisControl",
@@ -78,11 +87,17 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Physics:
-    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing)."""
+    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing).
+
+    ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
+    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body).
+    """
 
     friction: bool
     long_range: bool
     vdw: bool
+    bonded: bool = False
+    chain: int = 1
 
 
 _PARAMETER_INDEX = {
@@ -97,7 +112,11 @@ _PARAMETER_INDEX = {
 
 
 class Simulation:
-    """A periodic 2D assembly of rigid rods of discs (see the module docstring)."""
+    """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
+
+    ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
+    one disc of a bonded rod); ``n_rods`` rods, ``n_bodies`` bodies, ``n_discs`` discs.
+    """
 
     def __init__(
         self,
@@ -124,14 +143,20 @@ class Simulation:
         self.execution = execution
         self.full_list = execution == "gather"
         self.geometry = rod_geometry(scene)
+        self.body = body_geometry(scene)
+        self.bonded = scene.bonded
         charge, _, _ = species_parameters(scene)
         self.charge = charge
         lr_on = scene.long_range.enabled and bool(np.any(charge != 0))
         vdw_on = scene.van_der_waals.enabled and bool(np.any(charge != 0))
         friction_on = scene.contact.friction and scene.contact.k_t > 0
-        self.physics = Physics(friction=friction_on, long_range=lr_on, vdw=vdw_on)
+        self.physics = Physics(
+            friction=friction_on, long_range=lr_on, vdw=vdw_on, bonded=self.bonded,
+            chain=self.geometry.n_spheres,
+        )  # fmt: skip
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
+        self.n_bodies = self.n_discs if self.bonded else self.n_rods
         self._real = self.runtime.numpy_real
         self._stage = "gas"
         self._rates = np.zeros(2)
@@ -139,6 +164,13 @@ class Simulation:
         self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
         self.n_rebuild_calls = 0
         gas = initial if initial is not None else generate_gas(scene)
+        if self.bonded and len(gas.angle) == self.n_rods:
+            gas = bodies_from_rods(gas, self.geometry)
+        if len(gas.angle) != self.n_bodies:
+            raise ValueError(
+                f"initial state of {len(gas.angle)} bodies does not fit this scene "
+                f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
+            )
         self.cutoff = self._cutoff()
         self.list_radius = self.cutoff + scene.integration.skin
         capacity = neighbour_capacity or self._initial_capacity()
@@ -169,18 +201,20 @@ class Simulation:
         import taichi as ti
 
         real = self.runtime.real
-        n, m, ns = self.n_rods, self.n_discs, self.geometry.n_spheres
+        n, m, ns = self.n_bodies, self.n_discs, self.body.n_spheres
         nd = ti.ndarray
         self.capacity = int(capacity)
         cells_axis = int(max(cell_lengths) / self.list_radius) + 2
         self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
+        self._sizes["species"] = self.geometry.n_spheres
         self._sizes["cells"] = cells_axis
         self._dtypes = {"real": real, "i32": ti.i32}
         self.a: dict[str, Any] = {
             spec.name: nd(self._dtypes[spec.dtype], spec.shape_for(self._sizes))
             for spec in DEVICE_ARRAYS
         }
-        self.a["offsets"].from_numpy(self.geometry.offsets.astype(self._real))
+        self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))
+        self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
         self.a["pair_table"].from_numpy(pair_table(self.scene).astype(self._real))
         for name in ("nbr_count", "old_count"):
@@ -190,7 +224,7 @@ class Simulation:
         self.a["params"].from_numpy(self._default_params())
 
     def _default_params(self) -> np.ndarray:
-        s, geo = self.scene, self.geometry
+        s, geo = self.scene, self.body
         p = np.zeros(L.N_PARAMS)
         p[L.P_DT] = s.time_step
         p[L.P_KN] = s.contact.k_n
@@ -210,6 +244,12 @@ class Simulation:
         p[L.P_MAX_OVERLAP] = s.integration.max_overlap * geo.diameter
         p[L.P_REACH] = geo.length + self.list_radius
         p[L.P_CUT] = self.cutoff
+        p[L.P_SPACING] = s.particles.spacing
+        if self.bonded:
+            b = s.bond_parameters
+            p[[L.P_BOND_KN, L.P_BOND_KT, L.P_BOND_KB]] = b.k_n, b.k_t, b.k_b
+            p[[L.P_BOND_GN, L.P_BOND_GT, L.P_BOND_GB]] = b.gamma_n, b.gamma_t, b.gamma_b
+            p[L.P_BOND_BREAK] = b.breakage_force
         return p.astype(self._real)
 
     def _upload_gas(self, gas: GasState) -> None:
@@ -256,7 +296,7 @@ class Simulation:
 
         for _ in range(8):
             self._launch(
-                prime_forces, ns=self.geometry.n_spheres, full=self.full_list, phys=self.physics
+                prime_forces, ns=self.body.n_spheres, full=self.full_list, phys=self.physics
             )
             if not self._handle_flags(0):
                 return
@@ -313,7 +353,7 @@ class Simulation:
     def _check_kinetic_energy(self) -> None:
         v = self.a["vel"].to_numpy().astype(float)
         w = self.a["omega"].to_numpy().astype(float)
-        ke = 0.5 * self.geometry.mass * np.sum(v * v) + 0.5 * self.geometry.inertia * np.sum(w * w)
+        ke = 0.5 * self.body.mass * np.sum(v * v) + 0.5 * self.body.inertia * np.sum(w * w)
         limit = self.scene.integration.max_kinetic_energy_per_rod * self.n_rods
         if not math.isfinite(ke) or ke > limit:
             raise runaway_kinetic_energy(ke, limit, self.step, self.scene.integration)
@@ -337,7 +377,7 @@ class Simulation:
             self.a["flags"].from_numpy(flags)
             todo = n_steps - done
             t0 = _time.perf_counter()
-            ns = self.geometry.n_spheres
+            ns = self.body.n_spheres
             if self.execution == "serial":
                 self._launch(K.run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
@@ -414,9 +454,7 @@ class Simulation:
         from dem_taichi.kernels.measures import measure_sums
 
         t0 = _time.perf_counter()
-        self._launch(
-            measure_sums, ns=self.geometry.n_spheres, full=self.full_list, phys=self.physics
-        )
+        self._launch(measure_sums, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
         sums = self.a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
         return sums
@@ -435,20 +473,54 @@ class Simulation:
         area = float(np.prod(self.cell_lengths))
         return np.array([[sums[L.M_SXX], sums[L.M_SXY]], [sums[L.M_SYX], sums[L.M_SYY]]]) / area
 
-    def rod_positions(self) -> np.ndarray:
-        """Centroids (N, 2) wrapped into the cell [0, L)."""
+    def body_positions(self) -> np.ndarray:
+        """Body centroids (n_bodies, 2) wrapped into the cell [0, L) (rods, or the discs of
+        bonded rods)."""
         s = self.a["pos"].to_numpy().astype(float)
         return (s - np.floor(s)) * self.cell_lengths
 
-    def rod_angles(self) -> np.ndarray:
+    def body_angles(self) -> np.ndarray:
         return self.a["angle"].to_numpy().astype(float)
+
+    def rod_positions(self) -> np.ndarray:
+        """Rod centroids (N, 2) wrapped into the cell [0, L) (bonded rods: mean of the discs)."""
+        if not self.bonded:
+            return self.body_positions()
+        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[0]
+
+    def rod_angles(self) -> np.ndarray:
+        """Rod angles θ (N,) (bonded rods: of the end-to-end vector, in (−π, π])."""
+        if not self.bonded:
+            return self.body_angles()
+        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[1]
+
+    def disc_positions(self) -> np.ndarray:
+        """Disc centres (M, 2), rod-major (global disc index r n_s + s); not wrapped."""
+        return self.a["disc_x"].to_numpy().astype(float)
+
+    @property
+    def n_broken_bonds(self) -> int:
+        """Bonds broken so far (0 for rigid rods)."""
+        if not self.bonded:
+            return 0
+        intact = self.a["bond_intact"].to_numpy()
+        has_bond = np.arange(self.n_bodies) % self.geometry.n_spheres != self.geometry.n_spheres - 1
+        return int(np.count_nonzero(has_bond & (intact == 0)))
+
+    @property
+    def history_variables(self):
+        """The history file's variables for this simulation (bonded rods add theirs)."""
+        from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES, HISTORY_VARIABLES
+
+        return HISTORY_VARIABLES + (BONDED_HISTORY_VARIABLES if self.bonded else ())
 
     def measure(self) -> Measures:
         """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
         from dem_taichi.io.schema import stage_code
 
         sums = self._measure_sums()
-        return history_record(
+        n_bonds = self.n_rods * (self.geometry.n_spheres - 1) if self.bonded else 0
+        record = history_record(
             sums,
             self._stress_tensor(sums),
             self.cell_lengths,
@@ -461,16 +533,23 @@ class Simulation:
             self.time,
             stage_code(self._stage),
             self._mechanical_coordination(),
+            n_bodies=self.n_bodies,
+            n_bonds=n_bonds - int(round(sums[L.M_BROKEN])),
         )
+        if self.bonded:
+            record["bond_energy"] = float(sums[L.M_U_BOND])
+            record["n_broken_bonds"] = int(round(sums[L.M_BROKEN]))
+        return record
 
     def stress(self) -> np.ndarray:
         """Stress tensor (2, 2), compression positive, from the current forces."""
         return self._stress_tensor()
 
     def total_energy(self) -> float:
-        """Kinetic + contact + long-range energy (for conservation checks)."""
+        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
         m = self.measure()
-        return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"]
+        bonds = m.get("bond_energy", 0.0)
+        return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"] + bonds
 
     # ------------------------------------------------------------------------------------------
     # network (dem_taichi.network)
@@ -484,6 +563,32 @@ class Simulation:
         i, _, packed, bits = self._contact_pairs()
         return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
 
+    def _snapshot_positions(self) -> np.ndarray:
+        """Body centroids for the snapshot: wrapped, except that the discs of a bonded rod are
+        made contiguous (each bond vector x_h − x_g, no shift)."""
+        positions = self.body_positions()
+        if not self.bonded:
+            return positions
+        chain = self.geometry.n_spheres
+        return unwrapped_chains(positions, chain, self.cell_lengths).reshape(-1, 2)
+
+    def _bond_network(self):
+        """The bonds of a bonded simulation as a :class:`dem_taichi.snapshot.BondNetwork`."""
+        from dem_taichi.bonds import chain_bonds
+        from dem_taichi.snapshot import BondNetwork
+
+        g = chain_bonds(self.n_rods, self.geometry.n_spheres)
+        params = self.a["params"].to_numpy().astype(float)
+        return BondNetwork(
+            chain=self.geometry.n_spheres,
+            g=g,
+            intact=self.a["bond_intact"].to_numpy()[g] == 1,
+            rest_length=float(params[L.P_SPACING]),
+            k_n=float(params[L.P_BOND_KN]),
+            k_t=float(params[L.P_BOND_KT]),
+            k_b=float(params[L.P_BOND_KB]),
+        )
+
     def snapshot(self) -> NetworkSnapshot:
         """The interacting network as a :class:`dem_taichi.snapshot.NetworkSnapshot`."""
         self._measure_sums()
@@ -492,12 +597,13 @@ class Simulation:
             self.a["disc_x"].to_numpy().astype(float),
             self.a["nbr_xi"].to_numpy().astype(float),
             self.cell_lengths,
-            self.rod_positions(),
-            self.rod_angles(),
-            self.geometry,
+            self._snapshot_positions(),
+            self.body_angles(),
+            self.body,
             species_parameters(self.scene),
             self.a["params"].to_numpy().astype(float),
             self.physics.vdw,
+            bonds=self._bond_network() if self.bonded else None,
         )
 
     # ------------------------------------------------------------------------------------------
@@ -513,16 +619,18 @@ class Simulation:
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore a state from :meth:`get_state` (same scene and precision)."""
-        n, m = self.n_rods, self.n_discs
+        n, m = self.n_bodies, self.n_discs
         if state["angle"].shape != (n,) or state["neighbours"].shape[0] != m:
             raise ValueError(
-                f"state of {state['angle'].shape[0]} rods does not fit this simulation ({n} rods)"
+                f"state of {state['angle'].shape[0]} bodies does not fit this simulation ({n} "
+                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
             )
         if state["angle"].dtype != self._real:
             raise ValueError(
                 f"state precision {state['angle'].dtype} differs from the simulation's "
                 f"{np.dtype(self._real)}"
             )
+        state = upgrade_state(state, n)
         state = convert_neighbour_list(state, self.full_list, self.capacity)
         capacity = state["neighbours"].shape[1]
         if capacity != self.capacity:
@@ -537,7 +645,7 @@ class Simulation:
         # disc positions are derived: recompute them from the centroids
         from dem_taichi.kernels.common import place_all_discs
 
-        self._launch(place_all_discs, ns=self.geometry.n_spheres)
+        self._launch(place_all_discs, ns=self.body.n_spheres)
 
     def set_parameters(self, **values: float) -> None:
         """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""

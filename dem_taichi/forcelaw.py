@@ -300,9 +300,8 @@ class PairParameters:
 
 def pair_parameters(snapshot: NetworkSnapshot) -> PairParameters:
     """Pair F_max, k_a (harmonic mean), g_max = F_max/k_a and charge product of listed pairs."""
-    n_s = snapshot.n_spheres
-    species_i = snapshot.pair_i % n_s
-    species_j = snapshot.pair_j % n_s
+    species_i = snapshot.species(snapshot.pair_i)
+    species_j = snapshot.species(snapshot.pair_j)
     f_max = harmonic_mean(snapshot.f_max[species_i], snapshot.f_max[species_j])
     k_a = harmonic_mean(snapshot.k_a[species_i], snapshot.k_a[species_j])
     g_max = np.where(k_a > 0.0, f_max / np.where(k_a > 0.0, k_a, 1.0), 0.0)

@@ -21,7 +21,7 @@ import numpy as np
 
 from dem_taichi.kernels import layout as L
 
-__all__ = ["Measures", "history_record"]
+__all__ = ["BondedMeasures", "Measures", "history_record"]
 
 
 class Measures(TypedDict):
@@ -58,6 +58,14 @@ class Measures(TypedDict):
     inertial_number: float  # I (NaN at p = 0)
 
 
+class BondedMeasures(Measures, total=False):
+    """The record of a simulation of bonded rods: :class:`Measures` and the variables of
+    :data:`dem_taichi.io.history_schema.BONDED_HISTORY_VARIABLES`."""
+
+    bond_energy: float  # Σ ½ k e² over the intact bonds
+    n_broken_bonds: int
+
+
 def history_record(
     sums: np.ndarray,
     stress: np.ndarray,
@@ -71,11 +79,15 @@ def history_record(
     time: float,
     stage: int,
     mechanical_coordination: float,
+    n_bodies: int | None = None,
+    n_bonds: int = 0,
 ) -> Measures:
     """The history record from the measure kernel's ``sums`` (slots ``layout.M_*``), the
     ``stress`` tensor (2, 2), the cell ``lengths`` and ``reference_lengths`` (L0 of the
     strains), the strain ``rates`` of the last chunk, the rod ``angles``, the rod ``geometry``
-    and the counters; definitions of every entry in :data:`dem_taichi.io.schema.HISTORY`."""
+    and the counters; definitions of every entry in :data:`dem_taichi.io.schema.HISTORY`.
+    ``n_bodies`` (default ``n_rods``) and ``n_bonds`` (intact bonds) of bonded rods enter the
+    unbalanced-force ratio: mean body force over mean force of the pairs and bonds."""
     area = float(np.prod(lengths))
     p = 0.5 * (stress[0, 0] + stress[1, 1])
     q = stress[1, 1] - stress[0, 0]
@@ -83,9 +95,9 @@ def history_record(
     c, s = np.cos(angles), np.sin(angles)
     fxx, fyy, fxy = float(np.mean(c * c)), float(np.mean(s * s)), float(np.mean(c * s))
     n_contacts = int(round(sums[L.M_CONTACTS]))
-    n_pairs = sums[L.M_INTERACTING]
+    n_pairs = sums[L.M_INTERACTING] + n_bonds
     mean_pair = sums[L.M_SUM_PAIR_FORCE] / n_pairs if n_pairs > 0 else 0.0
-    mean_rod = sums[L.M_SUM_ROD_FORCE] / n_rods
+    mean_rod = sums[L.M_SUM_ROD_FORCE] / (n_rods if n_bodies is None else n_bodies)
     unbalanced = mean_rod / mean_pair if mean_pair > 0 else float("nan")
     rho = geometry.mass / geometry.solid_area
     rate = float(np.max(np.abs(rates)))

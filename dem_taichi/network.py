@@ -38,6 +38,8 @@ def mechanical_coordination(
     ns = n_spheres
     rod_i = (i[touching] // ns).astype(np.int64)
     rod_j = (packed[touching] // L.IMAGE_CODES // ns).astype(np.int64)
+    if np.any(rod_i == rod_j):  # a bonded rod touching itself: not a contact between rods
+        rod_i, rod_j = rod_i[rod_i != rod_j], rod_j[rod_i != rod_j]
     alive = np.ones(n_rods, dtype=bool)
     while True:
         keep = alive[rod_i] & alive[rod_j]
@@ -66,11 +68,14 @@ def network_snapshot(
     species: tuple[np.ndarray, np.ndarray, np.ndarray],
     params: np.ndarray,
     vdw: bool,
+    bonds=None,
 ) -> NetworkSnapshot:
     """The snapshot of the interacting ``entries`` (:func:`interacting_entries`): disc positions
     ``disc_x`` (M, 2), list springs ξ (M, K), cell ``lengths``, wrapped centroids and angles,
     the rod ``geometry``, ``species`` (charge, F_max, k_a) and the runtime ``params`` (k_n, k_t,
-    μ, van der Waals when ``vdw``)."""
+    μ, van der Waals when ``vdw``); ``bonds`` (a :class:`dem_taichi.snapshot.BondNetwork`) for
+    bonded rods, whose bodies are discs (``geometry`` of one disc, centroids contiguous along
+    each rod)."""
     i, k, packed, bits = entries
     j = packed // L.IMAGE_CODES
     code = packed % L.IMAGE_CODES
@@ -110,4 +115,5 @@ def network_snapshot(
         pair_shift=shift,
         tangential_spring=xi[:, None] * tangent,
         sliding=(bits & L.PAIR_SLIDING) != 0,
+        bonds=bonds,
     )

@@ -19,6 +19,8 @@ from dem_taichi.config import Scene, SceneError
 __all__ = [
     "RodGeometry",
     "rod_geometry",
+    "body_geometry",
+    "bodies_from_rods",
     "species_parameters",
     "GasState",
     "generate_gas",
@@ -65,6 +67,47 @@ def rod_geometry(scene: Scene) -> RodGeometry:
         solid_area=area,
         length=(n - 1) * sp + d,
         max_offset=float(np.max(np.abs(offsets))),
+    )
+
+
+def body_geometry(scene: Scene) -> RodGeometry:
+    """The geometry of the engine's bodies: the rod itself for rigid rods; one disc (mass m,
+    inertia m d²/8, no offset) for bonded rods, where every disc is a body (model.md §1.7)."""
+    if not scene.bonded:
+        return rod_geometry(scene)
+    p = scene.particles
+    d, m = p.diameter, p.disc_mass
+    return RodGeometry(
+        n_spheres=1,
+        diameter=d,
+        spacing=p.spacing,
+        disc_mass=m,
+        offsets=np.zeros(1),
+        mass=m,
+        inertia=m * d * d / 8.0,
+        solid_area=math.pi * d * d / 4.0,
+        length=d,
+        max_offset=0.0,
+    )
+
+
+def bodies_from_rods(gas: GasState, geometry: RodGeometry) -> GasState:
+    """The disc bodies (N n_s, rod-major) of a gas of rods: each disc at its place in the rod,
+    with the rod's angle, the rigid-body velocity v + ω × o_s a and the rod's ω (so a straight
+    bonded chain starts in its reference state, moving as the rigid rod did)."""
+    n_s = geometry.n_spheres
+    axis = np.stack([np.cos(gas.angle), np.sin(gas.angle)], axis=-1)
+    offset = geometry.offsets[None, :, None] * axis[:, None, :]  # (N, n_s, 2)
+    position = gas.position[:, None, :] + offset
+    position = np.mod(position, gas.cell_lengths)
+    spin = gas.angular_velocity[:, None, None]
+    velocity = gas.velocity[:, None, :] + spin * np.stack([-offset[..., 1], offset[..., 0]], -1)
+    return GasState(
+        np.asarray(gas.cell_lengths, dtype=float),
+        position.reshape(-1, 2),
+        np.repeat(gas.angle, n_s),
+        velocity.reshape(-1, 2),
+        np.repeat(gas.angular_velocity, n_s),
     )
 
 

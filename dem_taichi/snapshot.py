@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NetworkSnapshot"]
+__all__ = ["BondNetwork", "NetworkSnapshot"]
 
 
 def _as_array(name: str, value, dtype, shape: tuple) -> np.ndarray:
@@ -26,6 +26,45 @@ def _as_array(name: str, value, dtype, shape: tuple) -> np.ndarray:
         raise ValueError(f"NetworkSnapshot.{name}: shape {array.shape}, expected {shape} (-1=any)")
     array.setflags(write=False)
     return array
+
+
+@dataclass(frozen=True)
+class BondNetwork:
+    """The intra-rod bonds of a snapshot of bonded rods (model.md §1.7, :mod:`dem_taichi.bonds`).
+
+    The snapshot's bodies are then discs (``n_spheres`` = 1, rod-major: disc s of rod r is body
+    r·chain + s), their centroids contiguous along each rod (bond vector x_h − x_g, no shift).
+
+    Attributes:
+        chain: discs per rod n_s.
+        g: (B,) lower disc of every bond (h = g + 1).
+        intact: (B,) bool, the bond holds (broken bonds carry nothing).
+        rest_length: s_0; k_n, k_t, k_b: stretch, shear, bending stiffness.
+    """
+
+    chain: int
+    g: np.ndarray
+    intact: np.ndarray
+    rest_length: float
+    k_n: float
+    k_t: float
+    k_b: float
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        if int(self.chain) != self.chain or self.chain < 2:
+            raise ValueError(f"BondNetwork.chain = {self.chain!r}: need an int >= 2")
+        put(self, "chain", int(self.chain))
+        g = _as_array("g", self.g, np.int64, (-1,))
+        if np.any(g % self.chain == self.chain - 1):
+            raise ValueError("BondNetwork.g: the last disc of a rod has no bond to the next")
+        put(self, "g", g)
+        put(self, "intact", _as_array("intact", self.intact, bool, (g.shape[0],)))
+        for name in ("rest_length", "k_n", "k_t", "k_b"):
+            value = float(getattr(self, name))
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"BondNetwork.{name} = {value!r}: need a finite value > 0")
+            put(self, name, value)
 
 
 @dataclass(frozen=True)
@@ -51,6 +90,9 @@ class NetworkSnapshot:
         pair_shift: (P, 2) periodic image shift.
         tangential_spring: (P, 2) tangential spring ξ (0 for non-contacts).
         sliding: (P,) bool, the contact is at the Coulomb cap.
+        bonds: the bonds of bonded rods (:class:`BondNetwork`; then the bodies are discs and
+            ``charge``, ``f_max``, ``k_a`` have one entry per place in a rod), None for rigid
+            rods.
     """
 
     cell_lengths: np.ndarray
@@ -73,6 +115,7 @@ class NetworkSnapshot:
     pair_shift: np.ndarray
     tangential_spring: np.ndarray
     sliding: np.ndarray
+    bonds: BondNetwork | None = None
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -107,12 +150,17 @@ class NetworkSnapshot:
         if not (np.all(np.isfinite(position)) and np.all(np.isfinite(self.rod_angle))):
             raise ValueError("NetworkSnapshot.rod_position / rod_angle: non-finite values")
 
-        charge = _as_array("charge", self.charge, np.int64, (n_s,))
+        n_species = n_s if self.bonds is None else self.bonds.chain
+        if self.bonds is not None and n_s != 1:
+            raise ValueError(
+                f"NetworkSnapshot.n_spheres = {n_s} with bonds: the bodies of bonded rods are discs"
+            )
+        charge = _as_array("charge", self.charge, np.int64, (n_species,))
         if not np.all(np.isin(charge, (-1, 0, 1))):
             raise ValueError(f"NetworkSnapshot.charge = {charge}: values must be in {{-1, 0, 1}}")
         put(self, "charge", charge)
         for name in ("f_max", "k_a"):
-            values = _as_array(name, getattr(self, name), float, (n_s,))
+            values = _as_array(name, getattr(self, name), float, (n_species,))
             if not np.all(np.isfinite(values)) or np.any(values < 0.0):
                 raise ValueError(f"NetworkSnapshot.{name} = {values}: need finite values >= 0")
             put(self, name, values)
@@ -148,6 +196,23 @@ class NetworkSnapshot:
         put(self, "pair_shift", shift)
         put(self, "tangential_spring", spring)
         put(self, "sliding", _as_array("sliding", self.sliding, bool, (n_pairs,)))
+        if self.bonds is not None:
+            bonds = self.bonds
+            if bonds.g.size and bonds.g.max() + 1 >= n_rods:
+                raise ValueError(f"NetworkSnapshot.bonds.g: discs beyond the {n_rods} bodies")
+            lo = np.minimum(pair_i, pair_j)
+            bonded = np.zeros(n_rods, dtype=bool)
+            bonded[bonds.g[bonds.intact]] = True
+            if np.any((np.abs(pair_i - pair_j) == 1) & bonded[lo]):
+                raise ValueError(
+                    "NetworkSnapshot.pair_i/pair_j: a pair of bonded neighbours with the bond "
+                    "intact (they interact through the bond only) is listed"
+                )
+
+    def species(self, disc: np.ndarray) -> np.ndarray:
+        """Index into ``charge``/``f_max``/``k_a`` of every global disc index (its place s in
+        its rod)."""
+        return np.asarray(disc) % self.charge.shape[0]
 
     @property
     def n_rods(self) -> int:

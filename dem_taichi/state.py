@@ -7,7 +7,8 @@ written to a checkpoint by :mod:`dem_taichi.io.checkpoint`); its arrays are thos
 =================  ==============  ===========================================================
 key                shape / dtype   meaning
 =================  ==============  ===========================================================
-reduced_position   (N, 2) real     centroid in cell units s (X = s ∘ L), not always in [0, 1)
+reduced_position   (N, 2) real     centroid in cell units s (X = s ∘ L), not always in [0, 1);
+                                   N bodies: rods, or discs of bonded rods
 angle              (N,) real       θ, rod axis (cos θ, sin θ)
 velocity           (N, 2) real     fluctuating centroid velocity at the half step
 angular_velocity   (N,) real       ω at the half step
@@ -19,7 +20,8 @@ tangential_spring  (M, K) real     ξ of each entry (scalar along t = (−n_y, n
 neighbour_count    (M,) int32      used entries per disc
 cell               (8,) real       L_x, L_y, lengths at the last build, time, trackers
 flags              (12,) int32     kernel flags (see kernels/layout.py)
-params             (20,) real      runtime parameters incl. the current strain rates
+params             (28,) real      runtime parameters incl. the current strain rates
+bond_intact        (N,) int32      bonded rods: 1 while the bond b—b+1 holds (rigid: unused)
 reference_lengths  (2,) float64    L0 of the logarithmic strain
 step               () int64        steps done since the start of the run
 full_list          () bool         neighbour list holds both directions (``gather`` execution)
@@ -100,3 +102,20 @@ def convert_neighbour_list(
     converted["neighbour_count"] = np.array([len(r) for r in rows], dtype=counts.dtype)
     converted["full_list"] = np.array(full_list)
     return converted
+
+
+def upgrade_state(state: dict[str, np.ndarray], n_bodies: int) -> dict[str, np.ndarray]:
+    """A state written before the bonded-rod model (``params`` of 20 entries, no
+    ``bond_intact``) in today's layout: the new parameters 0, every bond intact. Today's
+    states are returned as they are."""
+    params = np.asarray(state["params"])
+    if params.shape[0] == L.N_PARAMS and "bond_intact" in state:
+        return state
+    state = dict(state)
+    if params.shape[0] < L.N_PARAMS:
+        state["params"] = np.concatenate(
+            [params, np.zeros(L.N_PARAMS - params.shape[0], params.dtype)]
+        )
+    if "bond_intact" not in state:
+        state["bond_intact"] = np.ones(n_bodies, dtype=np.int32)
+    return state

@@ -247,3 +247,27 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
 )
 
 HISTORY: Mapping[str, Variable] = variable_table(HISTORY_VARIABLES)
+
+#: Written by runs of bonded rods only (``[particles] rod_model = "bonded"``, model.md §1.7);
+#: there the stress, the unbalanced-force ratio and the kinetic energy also count the bonds and
+#: the disc bodies.
+BONDED_HISTORY_VARIABLES: tuple[Variable, ...] = (
+    Variable(
+        "bond_energy",
+        TIME,
+        "1",
+        "elastic energy of the intra-rod bonds",
+        dem_units="energy",
+        definition="sum over intact bonds of 1/2 (k_bn e_n^2 + k_bt e_t^2 + kappa_b e_b^2) "
+        "(stretch, shear and bending measures of dem_taichi.bonds)",
+    ),
+    Variable(
+        "n_broken_bonds",
+        TIME,
+        "1",
+        "number of broken intra-rod bonds",
+        dtype="i8",
+        definition="bonds whose tension k_bn e_n exceeded [bonds] breakage_force (broken for "
+        "good; the two discs then interact as any other pair)",
+    ),
+)

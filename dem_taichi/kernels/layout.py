@@ -29,7 +29,16 @@ P_MAX_OFFSET = 16  # max |o_s| of a disc from its rod centroid
 P_MAX_OVERLAP = 17  # blow-up bound on δ (absolute)
 P_REACH = 18  # bound on the centroid branch vector of a listed pair (rod length + list radius)
 P_CUT = 19  # interaction cut-off (centre distance): d, or d + max range of the long-range laws
-N_PARAMS = 20
+# bonded rods (model.md §1.7; unused by rigid rods)
+P_SPACING = 20  # bond rest length s_0 (the rods' centre spacing)
+P_BOND_KN = 21  # bond stretch stiffness k_bn
+P_BOND_KT = 22  # bond shear stiffness k_bt
+P_BOND_KB = 23  # bond bending stiffness κ_b
+P_BOND_GN = 24  # bond stretch damping γ_bn
+P_BOND_GT = 25  # bond shear damping γ_bt
+P_BOND_GB = 26  # bond bending damping γ_bb
+P_BOND_BREAK = 27  # breakage tension F_b (≤ 0: unbreakable)
+N_PARAMS = 28
 
 # cell -----------------------------------------------------------------------------------------
 C_LX = 0
@@ -57,7 +66,7 @@ BLOWUP_NONFINITE = 1
 BLOWUP_OVERLAP = 2
 
 # measures -------------------------------------------------------------------------------------
-M_SXX = 0  # Σ f_x b_x over inter-rod pairs (not yet divided by the area)
+M_SXX = 0  # Σ f_x b_x over inter-rod pairs and bonds (not yet divided by the area)
 M_SXY = 1  # Σ f_x b_y
 M_SYX = 2  # Σ f_y b_x
 M_SYY = 3  # Σ f_y b_y
@@ -71,7 +80,9 @@ M_KE_ROT = 10  # Σ ½ I ω²
 M_SUM_ROD_FORCE = 11  # Σ_r |F_r|
 M_SLIDING = 12  # number of contacts at the Coulomb cap
 M_INTERACTING = 13  # number of interacting pairs (contact or non-zero long-range force)
-N_MEASURES = 14
+M_U_BOND = 14  # Σ bond elastic energy (bonded rods)
+M_BROKEN = 15  # number of broken bonds (bonded rods)
+N_MEASURES = 16
 
 # neighbour entries ----------------------------------------------------------------------------
 # entry = j * IMAGE_CODES + code, code = (m_x + IMAGE_RANGE) * IMAGE_SIDE + (m_y + IMAGE_RANGE),

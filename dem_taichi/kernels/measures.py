@@ -5,8 +5,11 @@ and the force and ``layout.PAIR_*`` bits of every list entry for the host.
 import taichi as ti
 
 from dem_taichi.kernels.common import nd1, nd2, nd3
+from dem_taichi.kernels.bonds import bond_interaction
 from dem_taichi.kernels.layout import (
     IMAGE_CODES,
+    M_BROKEN,
+    M_U_BOND,
     M_CONTACTS,
     M_INTERACTING,
     M_KE_ROT,
@@ -38,6 +41,8 @@ def measure_sums(
     ns: ti.template(),
     full: ti.template(),
     phys: ti.template(),
+    pos: nd2,
+    angle: nd1,
     vel: nd2,
     omega: nd1,
     force: nd2,
@@ -50,6 +55,7 @@ def measure_sums(
     nbr_count: nd1,
     charge: nd1,
     pair_table: nd3,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     measures: nd1,
@@ -61,6 +67,8 @@ def measure_sums(
 
     pair_out (M,K,4): F_x, F_y, f_contact_normal, f_tangential of each list entry;
     pair_flags (M,K): bits PAIR_CONTACT, PAIR_LONG_RANGE, PAIR_SLIDING, PAIR_INTERACTING (layout).
+    Bonded rods: the bonds add to the stress (f ⊗ d), their energy and the count of broken bonds
+    to the measures.
     """
     n_rods = vel.shape[0]
     n_discs = n_rods * ns
@@ -104,6 +112,7 @@ def measure_sums(
                         nbr_xi,
                         charge,
                         pair_table,
+                        bond_intact,
                         cell,
                         params,
                     )
@@ -137,3 +146,19 @@ def measure_sums(
                 pair_out[i, k, 2] = fc
                 pair_out[i, k, 3] = ft
                 pair_flags[i, k] = bits
+        if ti.static(phys.bonded):
+            chain = ti.static(phys.chain)
+            for g in range(n_rods):
+                if g % chain != chain - 1:
+                    if bond_intact[g] == 1:
+                        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
+                            g, pos, angle, vel, omega, cell, params
+                        )
+                        measures[M_SXX] += fx * dx
+                        measures[M_SXY] += fx * dy
+                        measures[M_SYX] += fy * dx
+                        measures[M_SYY] += fy * dy
+                        measures[M_U_BOND] += energy
+                        measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+                    else:
+                        measures[M_BROKEN] += 1.0

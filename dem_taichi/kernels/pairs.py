@@ -8,6 +8,7 @@ Coulomb friction), long-range and van der Waals forces of one list entry (the la
 
 import taichi as ti
 
+from dem_taichi.kernels.bonds import is_bonded_pair
 from dem_taichi.kernels.common import T
 from dem_taichi.kernels.laws import (
     contact_normal_force,
@@ -57,6 +58,7 @@ def pair_interaction(
     nbr_xi: T,
     charge: T,
     pair_table: T,
+    bond_intact: T,
     cell: T,
     params: T,
 ):
@@ -65,7 +67,9 @@ def pair_interaction(
     Returns (F_x, F_y, τ_i, τ_j, j, active, f_contact_normal, f_tangential, δ, U_contact, U_long,
     long_active, b_x, b_y) with F the force on i (−F on j), τ the torques on the two rods, b the
     centroid branch vector X_P − X_Q − shift. ``update``: advance ξ by v_t Δt (time step) or just
-    read it (measures).
+    read it (measures). Bonded rods (``phys.bonded``): every disc is a body (``ns`` = 1), species
+    by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with their
+    bond intact do not interact (:mod:`dem_taichi.kernels.bonds`).
     """
     lx = cell[C_LX]
     ly = cell[C_LY]
@@ -92,7 +96,13 @@ def pair_interaction(
     long_active = 0
     bx = 0.0
     by = 0.0
+    within = 0
     if dist2 < cut * cut:
+        within = 1
+    if ti.static(phys.bonded):
+        if within == 1:
+            within = 1 - is_bonded_pair(phys.chain, i, j, bond_intact)
+    if within == 1:
         active = 1
         dist = ti.sqrt(dist2)
         nx = dx / dist
@@ -137,8 +147,8 @@ def pair_interaction(
             if ti.static(phys.friction and update):
                 nbr_xi[i, k] = 0.0
         if ti.static(phys.long_range or phys.vdw):
-            si = i % ns
-            sj = j % ns
+            si = i % phys.chain
+            sj = j % phys.chain
             gap = -delta
             if ti.static(phys.long_range):
                 s_f = pair_table[si, sj, 0]
@@ -189,6 +199,7 @@ def disc_forces(
     nbr_count: T,
     charge: T,
     pair_table: T,
+    bond_intact: T,
     cell: T,
     params: T,
     flags: T,
@@ -220,6 +231,7 @@ def disc_forces(
             nbr_xi,
             charge,
             pair_table,
+            bond_intact,
             cell,
             params,
         )

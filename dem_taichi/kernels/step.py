@@ -30,6 +30,7 @@ Time integration (leapfrog kick–drift form of velocity Verlet, per step):
 
 import taichi as ti
 
+from dem_taichi.kernels.bonds import add_bond_forces, gather_bond_forces
 from dem_taichi.kernels.common import (
     T,
     nd1,
@@ -173,6 +174,7 @@ def run_steps_serial(
     disc_cell: nd1,
     charge: nd1,
     pair_table: nd3,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     flags: nd1,
@@ -256,10 +258,17 @@ def run_steps_serial(
                         nbr_count,
                         charge,
                         pair_table,
+                        bond_intact,
                         cell,
                         params,
                         flags,
                     )
+                if ti.static(phys.bonded):
+                    for b in range(n_rods):
+                        add_bond_forces(
+                            phys.chain, False, b, pos, angle, vel, omega, force, torque,
+                            bond_intact, cell, params,
+                        )  # fmt: skip
                 cell[C_TIME] += params[P_DT]
                 flags[F_STEPS] += 1
 
@@ -372,6 +381,8 @@ def kick_drift_parallel(
 def forces_parallel(
     ns: ti.template(),
     phys: ti.template(),
+    pos: nd2,
+    angle: nd1,
     vel: nd2,
     omega: nd1,
     force: nd2,
@@ -384,6 +395,7 @@ def forces_parallel(
     nbr_count: nd1,
     charge: nd1,
     pair_table: nd3,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     flags: nd1,
@@ -411,10 +423,18 @@ def forces_parallel(
                 nbr_count,
                 charge,
                 pair_table,
+                bond_intact,
                 cell,
                 params,
                 flags,
             )
+    if ti.static(phys.bonded):
+        for b in range(force.shape[0]):
+            if flags[F_STOP] == 0:
+                add_bond_forces(
+                    phys.chain, True, b, pos, angle, vel, omega, force, torque, bond_intact,
+                    cell, params,
+                )  # fmt: skip
     if count_step == 1 and flags[F_STOP] == 0:
         cell[C_TIME] += params[P_DT]
         flags[F_STEPS] += 1
@@ -448,6 +468,7 @@ def prime_forces(
     disc_cell: nd1,
     charge: nd1,
     pair_table: nd3,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     flags: nd1,
@@ -510,16 +531,25 @@ def prime_forces(
                     nbr_count,
                     charge,
                     pair_table,
+                    bond_intact,
                     cell,
                     params,
                     flags,
                 )
+            if ti.static(phys.bonded):
+                for b in range(n_rods):
+                    add_bond_forces(
+                        phys.chain, False, b, pos, angle, vel, omega, force, torque,
+                        bond_intact, cell, params,
+                    )  # fmt: skip
 
 
 @ti.kernel
 def forces_gather(
     ns: ti.template(),
     phys: ti.template(),
+    pos: nd2,
+    angle: nd1,
     vel: nd2,
     omega: nd1,
     force: nd2,
@@ -532,6 +562,7 @@ def forces_gather(
     nbr_count: nd1,
     charge: nd1,
     pair_table: nd3,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     flags: nd1,
@@ -566,10 +597,16 @@ def forces_gather(
                     nbr_count,
                     charge,
                     pair_table,
+                    bond_intact,
                     cell,
                     params,
                     flags,
                 )
+            if ti.static(phys.bonded):
+                gather_bond_forces(
+                    phys.chain, r, pos, angle, vel, omega, force, torque, bond_intact, cell,
+                    params,
+                )  # fmt: skip
     if flags[F_STOP] == 0:
         cell[C_TIME] += params[P_DT]
         flags[F_STEPS] += 1

@@ -43,12 +43,22 @@ def test_measures_record_declares_every_history_variable_with_its_type(smoke):
 
     from dem_taichi.measures import Measures
 
-    hints = typing.get_type_hints(Measures)
-    assert set(hints) == set(HISTORY)
+    from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES
+    from dem_taichi.measures import BondedMeasures
+
+    hints = typing.get_type_hints(BondedMeasures)
+    bonded = {var.name for var in BONDED_HISTORY_VARIABLES}
+    assert set(typing.get_type_hints(Measures)) == set(HISTORY)
+    assert set(BondedMeasures.__optional_keys__) == bonded
     m = Simulation(smoke).run(10, CellControl.strain_rate(0.1))
-    assert set(m) == set(hints)
+    assert set(m) == set(HISTORY)
+    scene = smoke.replace(particles={"rod_model": "bonded"})
+    mb = Simulation(scene).run(10, CellControl.strain_rate(0.1))
+    assert set(mb) == set(HISTORY) | bonded
     for name, kind in hints.items():
-        assert type(m[name]) is kind, (name, type(m[name]))
+        assert type(mb[name]) is kind, (name, type(mb[name]))
+        if name in m:
+            assert type(m[name]) is kind, (name, type(m[name]))
 
 
 def test_strain_control_follows_the_prescribed_logarithmic_strain(smoke):
