@@ -54,10 +54,10 @@ from typing import Any
 
 import numpy as np
 
+from dem_taichi.bonds import rod_axes, unwrapped_chains
 from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
-from dem_taichi.bonds import rod_axes, unwrapped_chains
 from dem_taichi.failures import BlowUpError, CapacityError, blowup_error, runaway_kinetic_energy
 from dem_taichi.kernels import layout as L
 from dem_taichi.measures import Measures, history_record

@@ -4,12 +4,11 @@ and the force and ``layout.PAIR_*`` bits of every list entry for the host.
 
 import taichi as ti
 
-from dem_taichi.kernels.common import nd1, nd2, nd3
 from dem_taichi.kernels.bonds import bond_interaction
+from dem_taichi.kernels.common import nd1, nd2, nd3
 from dem_taichi.kernels.layout import (
     IMAGE_CODES,
     M_BROKEN,
-    M_U_BOND,
     M_CONTACTS,
     M_INTERACTING,
     M_KE_ROT,
@@ -22,6 +21,7 @@ from dem_taichi.kernels.layout import (
     M_SXY,
     M_SYX,
     M_SYY,
+    M_U_BOND,
     M_U_CONTACT,
     M_U_LONG,
     P_DT,

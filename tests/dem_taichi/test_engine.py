@@ -41,10 +41,8 @@ def test_measures_record_declares_every_history_variable_with_its_type(smoke):
     fills each with a value of the declared type."""
     import typing
 
-    from dem_taichi.measures import Measures
-
     from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES
-    from dem_taichi.measures import BondedMeasures
+    from dem_taichi.measures import BondedMeasures, Measures
 
     hints = typing.get_type_hints(BondedMeasures)
     bonded = {var.name for var in BONDED_HISTORY_VARIABLES}
