@@ -1,0 +1,188 @@
+"""Linear response of a network of *bonded* rods as the engine holds it (numpy, no Taichi).
+
+The zero-amplitude stiffness dσ/dε of a state of the bonded-rod model (``[particles] rod_model =
+"bonded"``, model.md §1.7): every disc a body (x, y, θ), inter-rod (and non-bonded intra-rod)
+pairs as in :mod:`dem_taichi.linear_response` with disc-centred levers, and every intact bond
+with its Hessian at the *current* deformation and its current forces as pre-forces
+(Λ = k e, the geometric terms of :func:`dem_taichi.flexible_response.bond_jacobians`). So the
+response is exact for the bonded state, checked against the engine's dynamic probes.
+
+Pruning works on *fragments* (the pieces of a rod held together by intact bonds: a whole rod
+unless a bond broke): a fragment with at most one active pair to other fragments is a rattler,
+non-spanning clusters of fragments are dropped, as rigid rods are in the rigid response.
+
+:func:`network_response` is the one entry of the probes and the servo: it picks this response
+for a snapshot with bonds and :func:`dem_taichi.linear_response.linear_response` otherwise.
+"""
+
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+from typing import Literal
+
+import numpy as np
+
+from dem_taichi import forcelaw
+from dem_taichi.flexible_response import BondStiffness, bond_jacobians
+from dem_taichi.linear_response import (
+    ENGINE_STIFFNESS,
+    LinearResponse,
+    NetworkSnapshot,
+    StiffnessVariant,
+    assemble,
+    kept_network,
+    linear_response,
+    pair_jacobians,
+    relaxed_response,
+)
+
+__all__ = ["bond_state", "bonded_response", "fragments", "network_response"]
+
+
+def network_response(
+    snapshot: NetworkSnapshot,
+    sliding_contacts: Literal["free", "stuck"] = "free",
+    include_geometric: bool = True,
+    regularisation: float = 1e-10,
+    variant: StiffnessVariant = ENGINE_STIFFNESS,
+    stability: bool = False,
+) -> LinearResponse:
+    """The linear response of a snapshot of either rod model (same arguments as
+    :func:`dem_taichi.linear_response.linear_response`)."""
+    respond = linear_response if snapshot.bonds is None else bonded_response
+    return respond(
+        snapshot, sliding_contacts=sliding_contacts, include_geometric=include_geometric,
+        regularisation=regularisation, variant=variant, stability=stability,
+    )  # fmt: skip
+
+
+def fragments(n_discs: int, g: np.ndarray, intact: np.ndarray) -> np.ndarray:
+    """Label (M,) of the fragment of every disc: discs joined by intact bonds share a label."""
+    joined = np.zeros(n_discs, dtype=bool)  # disc d joined to d − 1
+    joined[g[intact] + 1] = True
+    return np.cumsum(~joined) - 1
+
+
+def bond_state(snapshot: NetworkSnapshot):
+    """Geometry and forces of the intact bonds of a bonded snapshot.
+
+    Returns (h, g, axis a_m, tangent t_m, d = x_h − x_g, λ = (k_n e_n, k_t e_t, k_b e_b)).
+    """
+    bonds = snapshot.bonds
+    g = bonds.g[bonds.intact]
+    h = g + 1
+    x, theta = snapshot.rod_position, snapshot.rod_angle
+    d = x[h] - x[g]  # the snapshot's chains are contiguous
+    theta_m = 0.5 * (theta[g] + theta[h])
+    axis = np.stack([np.cos(theta_m), np.sin(theta_m)], axis=-1)
+    tangent = np.stack([-axis[:, 1], axis[:, 0]], axis=-1)
+    e = np.stack(
+        [
+            np.sum(d * axis, axis=-1) - bonds.rest_length,
+            np.sum(d * tangent, axis=-1),
+            theta[h] - theta[g],
+        ],
+        axis=-1,
+    )
+    lam = e * np.array([bonds.k_n, bonds.k_t, bonds.k_b])
+    return h, g, axis, tangent, d, lam
+
+
+def bonded_response(
+    snapshot: NetworkSnapshot,
+    sliding_contacts: Literal["free", "stuck"] = "free",
+    include_geometric: bool = True,
+    regularisation: float = 1e-10,
+    variant: StiffnessVariant = ENGINE_STIFFNESS,
+    stability: bool = False,
+) -> LinearResponse:
+    """Zero-amplitude stiffness dσ/dε of a bonded-rod network (arguments as
+    :func:`dem_taichi.linear_response.linear_response`; ``solver.n_dof`` counts disc DOFs)."""
+    if snapshot.bonds is None:
+        raise ValueError("bonded_response needs a snapshot of bonded rods (snapshot.bonds)")
+    if sliding_contacts not in ("free", "stuck"):
+        raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
+    if not (np.isfinite(regularisation) and regularisation > 0.0):
+        raise ValueError(f"regularisation = {regularisation!r}: need a finite value > 0")
+    start = time.perf_counter()
+    bonds = snapshot.bonds
+    n_discs = snapshot.n_rods
+    area = float(np.prod(snapshot.cell_lengths))
+    pairs = forcelaw.pair_forces(snapshot)
+    active = pairs.in_contact | (pairs.normal_force != 0.0) | (pairs.normal_stiffness != 0.0)
+    flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
+    sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
+    zero = np.zeros((snapshot.n_pairs, 2))
+    k_pair, j_pair = pair_jacobians(
+        pairs, zero, zero, pairs.separation, variant.normal_stiffness(snapshot, pairs),
+        variant.k_t(snapshot), snapshot.mu, snapshot.k_n, sliding_free, include_geometric,
+        variant.rolling_stiffness,
+    )  # fmt: skip
+
+    # fragments (rods, or their pieces) are pruned as rigid rods are
+    fragment = fragments(n_discs, bonds.g, bonds.intact)
+    frag_i, frag_j = fragment[snapshot.pair_i], fragment[snapshot.pair_j]
+    proxy = SimpleNamespace(
+        n_rods=int(fragment.max()) + 1 if n_discs else 0, n_spheres=1, pair_i=frag_i,
+        pair_j=frag_j, pair_shift=snapshot.pair_shift, cell_lengths=snapshot.cell_lengths,
+    )  # fmt: skip
+    keep_fragment, _, labels = kept_network(proxy, active & (frag_i != frag_j))
+    keep_disc = keep_fragment[fragment]
+    used = active & keep_disc[snapshot.pair_i] & keep_disc[snapshot.pair_j]
+
+    h, g, axis, tangent, d, lam = bond_state(snapshot)
+    stiffness = BondStiffness(bonds.k_n, bonds.k_t, bonds.k_b)
+    k_all, j_all, force_all = bond_jacobians(axis, tangent, d, lam, stiffness, include_geometric)
+    kept = keep_disc[g]
+    stress_all = (
+        np.einsum("pa,pb->ab", pairs.force, pairs.separation) + np.einsum("pa,pb->ab", force_all, d)
+    ) / area
+    hessian, gamma, d_q, d_g = assemble(
+        np.concatenate([k_pair[used], k_all[kept]]),
+        np.concatenate([j_pair[used], j_all[kept]]),
+        np.concatenate([pairs.separation[used], d[kept]]),
+        np.concatenate([snapshot.pair_i[used], h[kept]]),
+        np.concatenate([snapshot.pair_j[used], g[kept]]),
+        n_discs, area, stress_all, include_geometric,
+    )  # fmt: skip
+
+    # pin the translations of one disc of the best-connected fragment of each cluster
+    keep_dof = np.repeat(keep_disc, 3)
+    count = np.bincount(frag_i[used], minlength=proxy.n_rods) + np.bincount(
+        frag_j[used], minlength=proxy.n_rods
+    )
+    pinned = []
+    for label in np.unique(labels[keep_fragment]):
+        members = np.flatnonzero(labels == label)
+        best = int(members[np.argmax(count[members])])
+        discs = np.flatnonzero(fragment == best)
+        disc = int(discs[len(discs) // 2])
+        pinned.append(disc)
+        keep_dof[3 * disc : 3 * disc + 2] = False
+    residual = _residual_forces(snapshot, pairs, h, g, force_all, lam, axis, tangent, d)
+    force_scale = np.mean(np.linalg.norm(pairs.force[active], axis=-1)) if np.any(active) else 0.0
+    unbalanced = float(np.max(np.abs(residual[keep_disc])) / force_scale) if force_scale else 0.0
+    return relaxed_response(
+        hessian, gamma, d_q, d_g, stress_all, keep_dof, regularisation, start,
+        n_pairs_used=int(np.count_nonzero(used)), pinned=pinned, keep_rod=keep_disc,
+        unbalanced_force=unbalanced, sliding_contacts=sliding_contacts,
+        include_geometric=include_geometric, stability=stability,
+    )  # fmt: skip
+
+
+def _residual_forces(snapshot, pairs, h, g, force_h, lam, axis, tangent, d):
+    """Net force and torque (M, 3) on every disc from its pairs and bonds (0 in equilibrium)."""
+    n = snapshot.n_rods
+    out = np.zeros((n, 3))
+    for a in range(2):
+        out[:, a] += np.bincount(snapshot.pair_i, pairs.force[:, a], n)
+        out[:, a] -= np.bincount(snapshot.pair_j, pairs.force[:, a], n)
+        out[:, a] += np.bincount(h, force_h[:, a], n) - np.bincount(g, force_h[:, a], n)
+    moment = -0.5 * forcelaw.cross(pairs.separation, pairs.force)
+    out[:, 2] += np.bincount(snapshot.pair_i, moment, n) + np.bincount(snapshot.pair_j, moment, n)
+    e_t = np.sum(d * tangent, axis=-1)
+    d_a = np.sum(d * axis, axis=-1)
+    common = 0.5 * lam[:, 0] * e_t - 0.5 * lam[:, 1] * d_a
+    out[:, 2] += np.bincount(h, -(common + lam[:, 2]), n) + np.bincount(g, -(common - lam[:, 2]), n)
+    return out

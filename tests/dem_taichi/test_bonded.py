@@ -1,0 +1,346 @@
+"""Bonded rods (model.md §1.7, issue 10): the bond law, a single chain against the discrete-chain
+solution, conservation, breakage, resume, execution modes and precision.
+
+- the kernels' bond forces equal the numpy law (:mod:`dem_taichi.bonds`), which is the exact
+  gradient of its energy (finite differences) and conserves linear and angular momentum;
+- a free chain vibrates at the eigenfrequencies of the discrete chain (its bending and axial
+  stiffness, within 1 %), whose static compliances are the closed forms (Castigliano);
+- no damping: energy conserved with contacts and long-range forces; with every dashpot on,
+  linear momentum conserved to round-off, angular momentum of a free chain too;
+- a bond that opens beyond F_b breaks for good and carries nothing after.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dem_taichi.bonds import (
+    BondParameters,
+    bond_forces,
+    chain_bonds,
+    chain_hessian,
+    chain_max_frequency,
+    disc_inertia,
+)
+from dem_taichi.config import SceneError, scene_from_toml
+from dem_taichi.engine import Simulation
+from dem_taichi.flexible_response import BondStiffness, three_point_compliance
+from dem_taichi.forcelaw import cross
+from dem_taichi.scene import GasState
+from dem_taichi.state import states_equal
+
+CHAIN = """
+[scene]
+seed = 5
+[particles]
+n_rods = {n_rods}
+n_spheres = {n_spheres}
+rod_model = "bonded"
+initial_area_fraction = 0.2
+initial_speed = 1.0
+[bonds]
+bending = 0.3
+shear = 0.2
+damping_ratio = {zeta}
+breakage_force = {f_b}
+[contact]
+k_n = 1.0e4
+gamma_n = {gamma_n}
+friction = {friction}
+[long_range]
+enabled = {long_range}
+pattern = "acidic"
+[integration]
+dt_safety = {dt_safety}
+local_damping = 0.0
+steps_per_call = 200
+"""
+
+
+def chain_scene(n_rods=1, n_spheres=5, zeta=0.0, f_b=0.0, gamma_n=0.0, friction="false",
+                long_range="false", dt_safety=0.1):  # fmt: skip
+    return scene_from_toml(
+        CHAIN.format(
+            n_rods=n_rods, n_spheres=n_spheres, zeta=zeta, f_b=f_b, gamma_n=gamma_n,
+            friction=friction, long_range=long_range, dt_safety=dt_safety,
+        )
+    )  # fmt: skip
+
+
+def free_chain(scene, position, angle, velocity=None, omega=None, cell=40.0):
+    """A simulation of the chain's discs (bodies) in a large empty cell."""
+    n = len(angle)
+    gas = GasState(
+        np.array([cell, cell]),
+        np.asarray(position, dtype=float),
+        np.asarray(angle, dtype=float),
+        np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float),
+        np.zeros(n) if omega is None else np.asarray(omega, dtype=float),
+    )
+    return Simulation(scene, initial=gas)
+
+
+def straight(n, spacing=1.0, centre=(20.0, 20.0), angle=0.0):
+    offsets = (np.arange(n) - (n - 1) / 2.0) * spacing
+    axis = np.array([math.cos(angle), math.sin(angle)])
+    return np.asarray(centre) + offsets[:, None] * axis, np.full(n, angle)
+
+
+def deformed_chain(rng, n=5):
+    x, theta = straight(n, angle=0.4)
+    x = x + rng.normal(0.0, 0.02, x.shape)
+    theta = theta + rng.normal(0.0, 0.05, n)
+    return x, theta
+
+
+def test_kernel_bond_forces_equal_the_numpy_law():
+    rng = np.random.default_rng(1)
+    scene = chain_scene(zeta=0.3)
+    x, theta = deformed_chain(rng)
+    v, w = rng.normal(0.0, 0.3, (5, 2)), rng.normal(0.0, 0.5, 5)
+    sim = free_chain(scene, x, theta, v, w)
+    state = sim.get_state()
+    bonds = scene.bond_parameters
+    ref = bond_forces(x, theta, chain_bonds(1, 5), sim.cell_lengths, bonds, v, w)
+    force = np.zeros((5, 2))
+    torque = np.zeros(5)
+    g = chain_bonds(1, 5)
+    np.add.at(force, g + 1, ref.force_h)
+    np.add.at(force, g, -ref.force_h)
+    np.add.at(torque, g + 1, ref.torque_h)
+    np.add.at(torque, g, ref.torque_g)
+    scale = np.abs(ref.force_h).max()
+    np.testing.assert_allclose(state["force"], force, atol=1e-12 * scale)
+    np.testing.assert_allclose(state["torque"], torque, atol=1e-12 * scale)
+    assert sim.measure()["bond_energy"] == pytest.approx(ref.energy.sum(), rel=1e-12)
+
+
+def test_bond_law_is_the_gradient_of_its_energy_and_conserves_momentum():
+    rng = np.random.default_rng(2)
+    x, theta = deformed_chain(rng, n=3)
+    bonds = BondParameters(1e4, 3e3, 2e3, 0.0, 0.0, 0.0, rest_length=1.0)
+    g = chain_bonds(1, 3)
+    cell = np.array([40.0, 40.0])
+    result = bond_forces(x, theta, g, cell, bonds)
+
+    def energy(q):
+        return bond_forces(q[:, :2], q[:, 2], g, cell, bonds).energy.sum()
+
+    q = np.column_stack([x, theta])
+    generalised = np.zeros_like(q)
+    np.add.at(generalised[:, :2], g + 1, result.force_h)
+    np.add.at(generalised[:, :2], g, -result.force_h)
+    np.add.at(generalised[:, 2], g + 1, result.torque_h)
+    np.add.at(generalised[:, 2], g, result.torque_g)
+    step = 1e-6
+    for index in np.ndindex(q.shape):
+        plus, minus = q.copy(), q.copy()
+        plus[index] += step
+        minus[index] -= step
+        fd = -(energy(plus) - energy(minus)) / (2 * step)
+        assert generalised[index] == pytest.approx(fd, rel=1e-6, abs=1e-6)
+    # with dashpots: forces sum to zero and so do the moments about the origin
+    damped = BondParameters(1e4, 3e3, 2e3, 30.0, 20.0, 5.0, rest_length=1.0)
+    r = bond_forces(x, theta, g, cell, damped, rng.normal(size=(3, 2)), rng.normal(size=3))
+    moment = r.torque_h + r.torque_g + cross(x[g + 1] - x[g], r.force_h)
+    np.testing.assert_allclose(moment, 0.0, atol=1e-10)
+
+
+def test_discrete_chain_compliance_is_the_closed_form():
+    """The chain Hessian (dem_taichi.bonds) against Castigliano's three-point and axial
+    compliance of the bond law (flexible_response): two independent derivations."""
+    for n in (3, 5, 9):
+        k_n, k_t, k_b = 1e4, 2e3, 3e3
+        hessian = chain_hessian(n, 1.0, k_n, k_t, k_b)
+        # three-point load: P at the middle disc, −P/2 at the end discs (self-equilibrated)
+        load = np.zeros(3 * n)
+        load[3 * (n // 2) + 1] = 1.0
+        load[1] = load[3 * (n - 1) + 1] = -0.5
+        u = np.linalg.lstsq(hessian, load, rcond=None)[0]
+        deflection = u[3 * (n // 2) + 1] - 0.5 * (u[1] + u[3 * (n - 1) + 1])
+        expected = three_point_compliance(n, 1.0, BondStiffness(k_n, k_t, k_b))
+        assert deflection == pytest.approx(expected, rel=1e-9)
+        axial = np.zeros(3 * n)
+        axial[0], axial[3 * (n - 1)] = -1.0, 1.0
+        u = np.linalg.lstsq(hessian, axial, rcond=None)[0]
+        assert u[3 * (n - 1)] - u[0] == pytest.approx((n - 1) / k_n, rel=1e-9)
+
+
+def _modal_frequency(sim, mode, mass, steps, dt):
+    """Frequency of the modal coordinate of the discs' displacement, from its zero crossings."""
+    x0 = sim.get_state()["reduced_position"] * sim.cell_lengths
+    theta0 = sim.get_state()["angle"].copy()
+    series = []
+
+    def record(s, _m):
+        state = s.get_state()
+        u = np.column_stack([state["reduced_position"] * s.cell_lengths - x0,
+                             state["angle"] - theta0]).ravel()  # fmt: skip
+        series.append(float(np.sum(mass * mode * u)))
+
+    sim.run(steps, output_every=1, callback=record)
+    y = np.asarray(series)
+    y = y - y.mean()
+    up = np.flatnonzero((y[:-1] < 0.0) & (y[1:] >= 0.0))
+    times = (up + (-y[up]) / (y[up + 1] - y[up])) * dt  # linear interpolation
+    return 2.0 * math.pi * (len(times) - 1) / (times[-1] - times[0])
+
+
+@pytest.mark.parametrize("which", ["bending", "axial"])
+def test_free_chain_vibrates_at_the_discrete_chain_frequencies(which):
+    scene = chain_scene(n_spheres=5, dt_safety=0.05)
+    b = scene.bond_parameters
+    n = 5
+    mass = np.tile([1.0, 1.0, disc_inertia(1.0, 1.0)], n)
+    hessian = chain_hessian(n, 1.0, b.k_n, b.k_t, b.k_b)
+    inv = 1.0 / np.sqrt(mass)
+    values, vectors = np.linalg.eigh(hessian * inv[:, None] * inv[None, :])
+    modes = vectors * inv[:, None]  # mass-orthogonal displacement modes
+    axial_share = np.sum(modes[0::3] ** 2, axis=0) / np.sum(modes**2, axis=0)
+    nonzero = values > 1e-6 * values.max()
+    pick = nonzero & ((axial_share > 0.99) if which == "axial" else (axial_share < 0.01))
+    k = int(np.flatnonzero(pick)[0])  # the lowest of its kind
+    mode = modes[:, k] / np.abs(modes[:, k]).max()
+    x, theta = straight(n)
+    amplitude = 1e-4
+    x = x + amplitude * mode.reshape(n, 3)[:, :2]
+    theta = theta + amplitude * mode.reshape(n, 3)[:, 2]
+    sim = free_chain(scene, x, theta)
+    omega = math.sqrt(values[k])
+    dt = scene.time_step
+    steps = int(12 * 2 * math.pi / omega / dt)
+    measured = _modal_frequency(sim, mode / np.sum(mass * mode * mode), mass, steps, dt)
+    assert measured == pytest.approx(omega, rel=1e-2)
+    assert chain_max_frequency(n, 1.0, 1.0, 1.0, b.k_n, b.k_t, b.k_b) == pytest.approx(
+        math.sqrt(values.max()), rel=1e-12
+    )
+
+
+@pytest.mark.parametrize("long_range", ["true", "false"])
+def test_energy_is_conserved_without_damping(long_range):
+    scene = chain_scene(n_rods=40, long_range=long_range, dt_safety=0.05)
+    sim = Simulation(scene)
+    e0 = sim.total_energy()
+    k0 = sim.measure()["kinetic_energy"]
+    worst, contacts = 0.0, 0
+    for _ in range(40):
+        m = sim.run(250, output_every=10**9)
+        worst = max(worst, abs(sim.total_energy() - e0))
+        contacts += m["n_contacts"]
+    assert contacts > 20
+    assert worst <= 2e-3 * k0
+
+
+def test_momentum_is_conserved_with_every_dashpot_on():
+    scene = chain_scene(n_rods=40, zeta=0.5, gamma_n=30.0, friction="true", long_range="true")
+    sim = Simulation(scene)
+    p0 = sim.get_state()["velocity"].sum(axis=0)
+    sim.run(4000)
+    p = sim.get_state()["velocity"].sum(axis=0)
+    assert np.abs(p - p0).max() <= 1e-10 * math.sqrt(40 * 5)
+    # a free spinning, vibrating chain: angular momentum about the origin conserved
+    rng = np.random.default_rng(3)
+    x, theta = deformed_chain(rng)
+    v = rng.normal(0.0, 0.2, (5, 2))
+    v -= v.mean(axis=0)
+    w = np.full(5, 0.7)
+    chain = free_chain(chain_scene(zeta=0.5), x, theta, v, w, cell=60.0)
+    inertia = disc_inertia(1.0, 1.0)
+
+    def angular_momentum(s):
+        st = s.get_state()
+        pos = st["reduced_position"] * s.cell_lengths
+        return float(np.sum(cross(pos, st["velocity"])) + inertia * st["angular_velocity"].sum())
+
+    l0 = angular_momentum(chain)
+    energy0 = chain.total_energy()
+    chain.run(3000)
+    # leapfrog: positions and velocities half a step apart; the drift is O(Δt) and bounded
+    assert angular_momentum(chain) == pytest.approx(l0, rel=2e-3)
+    assert chain.total_energy() < energy0  # the dashpots dissipate
+
+
+def test_a_bond_that_opens_beyond_its_strength_breaks_and_carries_nothing():
+    scene = chain_scene(n_spheres=2, f_b=50.0)
+    x, theta = straight(2)
+    v = np.array([[-2.0, 0.0], [2.0, 0.0]])  # pulled apart: peak tension ~ v sqrt(k m) >> F_b
+    sim = free_chain(scene, x, theta, v)
+    assert sim.measure()["n_broken_bonds"] == 0
+    sim.run(400)
+    m = sim.measure()
+    assert m["n_broken_bonds"] == 1 and sim.n_broken_bonds == 1
+    assert m["bond_energy"] == 0.0
+    state = sim.get_state()
+    assert np.all(state["force"] == 0.0) and np.all(state["torque"] == 0.0)
+    distance = np.linalg.norm(np.diff(state["reduced_position"] * sim.cell_lengths, axis=0))
+    assert distance > 1.5  # the discs fly apart
+    # a weaker pull stays bonded and keeps carrying force
+    held = free_chain(scene, x, theta, 0.01 * v)
+    held.run(50)
+    assert held.measure()["n_broken_bonds"] == 0
+    assert held.measure()["bond_energy"] > 0.0
+
+
+def test_bonded_checkpoint_resumes_bit_for_bit(tmp_path):
+    scene = chain_scene(n_rods=40, zeta=0.2, gamma_n=30.0, friction="true", long_range="true",
+                        f_b=200.0)  # fmt: skip
+    sim = Simulation(scene)
+    sim.run(600)
+    path = sim.save_checkpoint(tmp_path / "bonded.npz")
+    sim.run(600)
+    resumed = Simulation.from_checkpoint(path)
+    assert resumed.n_bodies == 200 and resumed.bonded
+    resumed.run(600)
+    assert states_equal(sim.get_state(), resumed.get_state())
+
+
+@pytest.mark.parametrize("execution", ["parallel", "gather"])
+def test_execution_modes_agree_with_serial(execution):
+    scene = chain_scene(n_rods=40, zeta=0.2, gamma_n=30.0, friction="true", long_range="true")
+    serial = Simulation(scene, execution="serial")
+    other = Simulation(scene, execution=execution)
+    serial.run(300)
+    other.run(300)
+    a, b = serial.get_state(), other.get_state()
+    scale = np.abs(a["velocity"]).max()
+    np.testing.assert_allclose(b["reduced_position"], a["reduced_position"], atol=1e-9)
+    np.testing.assert_allclose(b["velocity"], a["velocity"], atol=1e-7 * scale)
+
+
+def test_single_precision_follows_double():
+    scene = chain_scene(n_rods=40, zeta=0.2, gamma_n=30.0, friction="true", long_range="true")
+    m64 = Simulation(scene, precision="f64").run(300)  # (a precision change re-inits Taichi)
+    f32 = Simulation(scene, precision="f32")
+    m32 = f32.run(300)
+    assert f32.get_state()["angle"].dtype == np.float32
+    assert m32["kinetic_energy"] == pytest.approx(m64["kinetic_energy"], rel=1e-3)
+    assert m32["bond_energy"] == pytest.approx(m64["bond_energy"], rel=5e-2, abs=1e-6)
+    Simulation(scene, precision="f64")  # the runtime goes back to f64 for the other tests
+
+
+def test_bonded_scenes_are_validated_at_load():
+    with pytest.raises(SceneError, match="rod_model = 'bonded' needs n_spheres >= 2"):
+        scene_from_toml('[particles]\nrod_model = "bonded"\nn_spheres = 1')
+    with pytest.raises(SceneError, match=r"\[bonds\] is used only with"):
+        scene_from_toml("[bonds]\nbending = 0.5")
+    with pytest.raises(SceneError, match="rod_model"):
+        scene_from_toml('[particles]\nrod_model = "flexible"')
+    with pytest.raises(SceneError, match="bending"):
+        scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nbending = -1.0')
+    with pytest.raises(SceneError, match="unknown key"):
+        scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nstiffness = 1.0')
+
+
+def test_the_time_step_follows_the_stiffest_of_contact_and_bond():
+    rigid = scene_from_toml("[particles]\nn_spheres = 5")
+    soft = scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nbending = 0.01\n'
+                           "normal = 0.3\nshear = 0.1")  # fmt: skip
+    stiff = scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nbending = 1.0')
+    assert soft.time_step == pytest.approx(rigid.time_step, rel=1e-12)  # contacts rule
+    assert stiff.time_step < 0.5 * rigid.time_step
+    b = stiff.bond_parameters
+    omega = chain_max_frequency(5, 1.0, 1.0, 1.0, b.k_n, b.k_t, b.k_b)
+    assert stiff.time_step == pytest.approx(stiff.integration.dt_safety * math.pi / omega)
