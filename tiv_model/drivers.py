@@ -27,11 +27,11 @@ import xarray as xr
 
 from . import __version__
 from .dissipation import bounding_fabric
-from .energy import stiffness
+from .energy import EnergyEvaluation, constraint_pressure, stiffness
 from .errors import ParameterError, TivModelError
-from .integrate import Control, advance, constraint_force, initial_state
+from .integrate import Control, advance, initial_state
 from .params import DEFAULT_OPTIONS, DEFAULT_SETTINGS, TABLE1, ModelOptions, Parameters
-from .state import State
+from .state import IncrementGuess, State
 from .tensors import IDENTITY_MANDEL, axial_minus_radial, deviatoric_invariant
 
 #: name -> (units, long_name) of every variable written along ``step``.
@@ -103,36 +103,62 @@ def elastic_probe(
 
 def record(state: State, params: Parameters, options: ModelOptions) -> dict[str, float]:
     """All dataset variables of one state."""
-    moduli = elastic_probe(state, params, options)
-    eps = state.strain
-    bound = bounding_fabric(state.stress, params, options)
-    bound_scalar = math.copysign(
-        float(deviatoric_invariant(bound)), float(axial_minus_radial(bound))
-    )
+    return {name: float(values[0]) for name, values in records([state], params, options).items()}
+
+
+def records(
+    states: list[State], params: Parameters, options: ModelOptions
+) -> dict[str, np.ndarray]:
+    """All dataset variables of many states, evaluated batched (one numpy call per quantity).
+
+    The elastic moduli are those of :func:`elastic_probe`, the bounding fabric that of
+    :func:`tiv_model.dissipation.bounding_fabric` and Λ_K that of
+    :func:`tiv_model.integrate.constraint_force`, each on the stacked states.
+    """
+    n = len(states)
+    if n == 0:
+        return {name: np.zeros(0) for name in VARIABLES}
+    stress = np.array([s.stress for s in states])
+    strain = np.array([s.strain for s in states])
+    eps_e = np.array([s.elastic_strain for s in states])
+    fabric = np.array([s.fabric for s in states])
+    v = np.array([s.specific_volume for s in states])
+    d = stiffness(eps_e, v, fabric, params, options)
+    dsig = d @ _SHEAR_PROBE
+    bound = bounding_fabric(stress, params, options)
+    bound_scalar = np.copysign(deviatoric_invariant(bound), axial_minus_radial(bound))
+    if options.constraint_forces:
+        energy = EnergyEvaluation(eps_e, v, fabric, params, options).energy
+        shift = constraint_pressure(energy, params)
+    else:
+        shift = np.zeros(n)
+    mean = (stress[:, 0] + stress[:, 1] + stress[:, 2]) / 3.0
+    q = stress[:, 0] - stress[:, 1]
+    e_v, e_h = d[:, 0, 0], d[:, 1, 1]
     return {
-        "axial_stress": float(state.stress[0]),
-        "radial_stress": float(state.stress[1]),
-        "mean_stress": state.mean_stress,
-        "deviatoric_stress": float(state.stress[0] - state.stress[1]),
-        "stress_ratio": float(state.stress[0] - state.stress[1]) / state.mean_stress,
-        "specific_volume": state.specific_volume,
-        "kinematic_specific_volume": state.kinematic_specific_volume,
-        "fabric": float(state.fabric[0] - state.fabric[1]),
+        "axial_stress": stress[:, 0],
+        "radial_stress": stress[:, 1],
+        "mean_stress": mean,
+        "deviatoric_stress": q,
+        "stress_ratio": q / mean,
+        "specific_volume": v,
+        "kinematic_specific_volume": v * np.exp(-(eps_e[:, 0] + eps_e[:, 1] + eps_e[:, 2])),
+        "fabric": fabric[:, 0] - fabric[:, 1],
         "bounding_fabric": bound_scalar,
-        "preconsolidation_pressure": state.preconsolidation_pressure,
-        "constraint_force": constraint_force(state, params, options),
-        "axial_strain": float(eps[0]),
-        "radial_strain": float(eps[1]),
-        "volumetric_strain": float(eps[0] + eps[1] + eps[2]),
-        "deviatoric_strain": 2.0 / 3.0 * float(eps[0] - eps[1]),
-        "e_oed_v": moduli.e_oed_v,
-        "e_oed_h": moduli.e_oed_h,
-        "stiffness_ratio": moduli.stiffness_ratio,
-        "bulk_modulus": moduli.bulk_modulus,
-        "shear_modulus": moduli.shear_modulus,
-        "plastic_multiplier": state.plastic_multiplier,
-        "dissipated_energy": state.dissipated_energy,
-        "plastic": float(state.plastic),
+        "preconsolidation_pressure": np.array([s.preconsolidation_pressure for s in states]),
+        "constraint_force": shift,
+        "axial_strain": strain[:, 0],
+        "radial_strain": strain[:, 1],
+        "volumetric_strain": strain[:, 0] + strain[:, 1] + strain[:, 2],
+        "deviatoric_strain": 2.0 / 3.0 * (strain[:, 0] - strain[:, 1]),
+        "e_oed_v": e_v,
+        "e_oed_h": e_h,
+        "stiffness_ratio": e_h / e_v,
+        "bulk_modulus": np.einsum("i,nij,j->n", IDENTITY_MANDEL, d, IDENTITY_MANDEL) / 9.0,
+        "shear_modulus": (dsig[:, 0] - dsig[:, 1]) / 3.0,
+        "plastic_multiplier": np.array([s.plastic_multiplier for s in states]),
+        "dissipated_energy": np.array([s.dissipated_energy for s in states]),
+        "plastic": np.array([float(s.plastic) for s in states]),
     }
 
 
@@ -145,13 +171,13 @@ def to_dataset(
     termination: str | None = None,
 ) -> xr.Dataset:
     """A CF-1.11 dataset of a list of states along ``step``."""
-    rows = [record(s, params, options) for s in states]
+    columns = records(states, params, options)
     data_vars = {}
     for name, (units, long_name) in VARIABLES.items():
         attrs = {"units": units, "long_name": long_name}
         if name.endswith("_stress") or name in ("constraint_force", "preconsolidation_pressure"):
             attrs["sign_convention"] = "compression_positive"
-        data_vars[name] = ("step", np.array([r[name] for r in rows]), attrs)
+        data_vars[name] = ("step", columns[name], attrs)
     attrs = {
         "Conventions": "CF-1.11",
         "title": title,
@@ -180,31 +206,34 @@ def run_path(
     progress: Callable[[int, State], None] | None = None,
 ) -> tuple[list[State], str | None]:
     """Apply a sequence of controls; returns the states (initial included) and a termination
-    message (None when complete). The stress-controlled components of each increment start
-    from the previous increment's strain increment, scaled to the new stress step.
+    message (None when complete). Each increment's Newton starts from the previous increment's
+    changes (:class:`tiv_model.state.IncrementGuess`), scaled to the new stress step.
     """
     if on_error not in ("raise", "stop"):
         raise ParameterError(f"on_error = {on_error!r}: use 'raise' or 'stop'")
     states = [state]
-    previous: np.ndarray | None = None
-    previous_stress_step: np.ndarray | None = None
+    previous: State | None = None
+    previous_stress_step: list[float] | None = None
     for i, control in enumerate(controls):
         current = states[-1]
-        stress_step = np.asarray(control.stress_target) - current.stress
+        stress = current.stress.tolist()
+        stress_step = [t - s for t, s in zip(control.stress_target, stress, strict=True)]
         guess = None
         if previous is not None and previous_stress_step is not None:
-            mask = np.array(control.stress_controlled)
-            den = float(np.linalg.norm(previous_stress_step[mask]))
+            mask = control.stress_controlled
+            pairs = zip(previous_stress_step, mask, strict=True)
+            den = math.sqrt(sum(d * d for d, m in pairs if m))
             if den > 0.0:
-                guess = previous * float(np.linalg.norm(stress_step[mask])) / den
+                num = math.sqrt(sum(d * d for d, m in zip(stress_step, mask, strict=True) if m))
+                guess = IncrementGuess.between(previous, current, num / den)
         try:
             new = advance(current, control, params, options, settings, guess=guess)
         except TivModelError as exc:
             if on_error == "raise":
                 raise
             return states, f"{type(exc).__name__}: {exc}"
-        previous = new.strain - current.strain
-        previous_stress_step = new.stress - current.stress
+        previous = current
+        previous_stress_step = [a - b for a, b in zip(new.stress.tolist(), stress, strict=True)]
         states.append(new)
         if progress is not None:
             progress(i + 1, new)

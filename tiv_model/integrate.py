@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import triaxial as triaxial_path
+from . import triaxial_solver
 from .dissipation import (
     YieldEvaluation,
     dissipation_rate,
@@ -401,7 +402,7 @@ def _local_solve(state: State, strain_increment, params, options, settings):
 def _mixed_step(state: State, control: Control, params, options, settings, guess=None) -> State:
     if settings.triaxial_fast_path and triaxial_path.is_axisymmetric(state, control):
         model = triaxial_path.model_for(params, options)
-        return triaxial_path.mixed_step(model, state, control, settings, guess)
+        return triaxial_solver.mixed_step(model, state, control, settings, guess)
     mask = np.array(control.stress_controlled, dtype=bool)
     deps = np.where(mask, 0.0, np.asarray(control.strain_increment, dtype=float))
     if not np.any(mask):
@@ -478,13 +479,15 @@ def _check_admissible(new: State, params: Parameters) -> None:
             f"kPa: {_volume_limit_text(params)}",
             new,
         )
-    if float(convexity_measure(new.fabric, params)) >= CONVEXITY_LIMIT:
-        check_convexity(new.fabric, params, new)
-    if not (
-        np.all(np.isfinite(new.stress))
-        and np.all(np.isfinite(new.elastic_strain))
-        and math.isfinite(new.specific_volume)
-    ):
+    b = new.fabric.tolist()
+    mean = (b[0] + b[1] + b[2]) / 3.0
+    dev2 = (b[0] - mean) ** 2 + (b[1] - mean) ** 2 + (b[2] - mean) ** 2 + b[3] ** 2 + b[4] ** 2
+    # ω β_s² with β_s² = 3/2 dev β : dev β (pure Python: this runs after every increment)
+    if params.omega * 1.5 * (dev2 + b[5] ** 2) >= 0.999 * CONVEXITY_LIMIT:
+        if float(convexity_measure(new.fabric, params)) >= CONVEXITY_LIMIT:
+            check_convexity(new.fabric, params, new)
+    values = new.stress.tolist() + new.elastic_strain.tolist() + [new.specific_volume]
+    if not all(map(math.isfinite, values)):
         raise ConvergenceError("non-finite state after an increment", new)
 
 

@@ -294,6 +294,13 @@ class SolverSettings:
     minimum_pressure:   p_min (kPa): a state with p below it is rejected
     triaxial_fast_path: use the scalar axisymmetric solver (:mod:`tiv_model.triaxial`) when
                         state and control are axisymmetric (same equations, ~20× faster)
+    jacobian:           "analytic" (default): the exact Jacobian of the implicit update;
+                        "finite_difference": forward differences (the scheme before issue 12,
+                        kept as the reference the tests compare with)
+    mixed_control:      "monolithic" (default): one Newton on the local unknowns with the
+                        stress residuals in place of the stress-controlled strain residuals
+                        (the nested scheme is tried if it fails); "nested": an outer Newton on
+                        the unknown strain components around the local solve (before issue 12)
     """
 
     tolerance: float = 1e-11
@@ -303,8 +310,18 @@ class SolverSettings:
     max_halvings: int = 12
     minimum_pressure: float = 1e-6
     triaxial_fast_path: bool = True
+    jacobian: str = "analytic"
+    mixed_control: str = "monolithic"
 
     def __post_init__(self) -> None:
+        for name, allowed in (
+            ("jacobian", ("analytic", "finite_difference")),
+            ("mixed_control", ("monolithic", "nested")),
+        ):
+            if getattr(self, name) not in allowed:
+                raise ParameterError(
+                    f"solver setting {name} = {getattr(self, name)!r}: use one of {allowed}"
+                )
         for name in ("tolerance", "stress_tolerance", "minimum_pressure"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):

@@ -101,3 +101,34 @@ class State:
             f"p_c = {self.preconsolidation_pressure:.6g} kPa, "
             f"axial strain = {self.strain[0]:.6g}"
         )
+
+
+@dataclass(frozen=True)
+class IncrementGuess:
+    """Starting values for the Newton of an increment: the changes of a previous increment
+    (``between``), scaled. Only the starting point depends on it, never the converged state.
+
+    strain, elastic_strain, fabric: Mandel increments Δε, Δε^e, Δβ (1);
+    plastic_multiplier: Δλ (1/kPa); log_specific_volume: Δ ln v (1).
+    """
+
+    strain: np.ndarray
+    elastic_strain: np.ndarray
+    plastic_multiplier: float
+    fabric: np.ndarray
+    log_specific_volume: float
+
+    @classmethod
+    def between(cls, before: State, after: State, ratio: float = 1.0) -> IncrementGuess:
+        """``ratio`` × the changes from ``before`` to ``after``."""
+        return cls(
+            strain=ratio * (after.strain - before.strain),
+            elastic_strain=ratio * (after.elastic_strain - before.elastic_strain),
+            plastic_multiplier=ratio * (after.plastic_multiplier - before.plastic_multiplier),
+            fabric=ratio * (after.fabric - before.fabric),
+            log_specific_volume=ratio * math.log(after.specific_volume / before.specific_volume),
+        )
+
+    def __array__(self, dtype=None, copy=None):
+        """The strain increment, so that code expecting a Mandel strain guess still works."""
+        return np.asarray(self.strain, dtype=dtype)

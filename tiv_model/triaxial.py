@@ -1,9 +1,9 @@
-"""Axisymmetric (triaxial) fast path of the implicit integration, in ``math`` scalars.
+"""Axisymmetric (triaxial) form of the TIV equations in ``math`` scalars, with the exact Jacobian.
 
 The general integrator (:mod:`tiv_model.integrate`) works on 3×3 tensors in Mandel form with
-vectorised numpy; each numpy call costs ~1–5 µs, so one increment costs milliseconds. On the
-element-test paths every tensor stays diag(a, r, r) and the same backward-Euler problem reduces
-to five scalar unknowns (ε^e_a, ε^e_r, μ, β, ln v) with closed-form scalar expressions:
+vectorised numpy; each numpy call costs ~1–5 µs. On the element-test paths every tensor stays
+diag(a, r, r) and the same backward-Euler problem reduces to five scalar unknowns
+x = (ε^e_a, ε^e_r, μ, β, ln v) with closed-form scalar expressions:
 
   form A: ε̃_a = (1 − 2b/3) ε_a, ε̃_r = (1 + b/3) ε_r, b = ω |β| β
   form B: ε̃_a = ε_a − (4/9) ω β² (ε_a − ε_r), ε̃_r = ε_r + (2/9) ω β² (ε_a − ε_r)
@@ -13,8 +13,13 @@ to five scalar unknowns (ε^e_a, ε^e_r, μ, β, ln v) with closed-form scalar e
 
 (the triaxial reductions of :mod:`tiv_model.energy` and :mod:`tiv_model.dissipation`; the tests
 check that both paths give the same states). β here is the signed scalar β_a − β_r.
-Used automatically by :func:`tiv_model.integrate.advance` when the state and the control are
-axisymmetric (``SolverSettings.triaxial_fast_path``).
+
+:meth:`TriaxialModel.evaluate_jacobian` gives the residuals *and* their exact derivatives
+∂R/∂x (5×5) and ∂(σ_a, σ_r)/∂x (2×5) by the chain rule through the same intermediate
+quantities (forward mode written out; gradients over (ε^e_a, ε^e_r, β, ln v), μ separately).
+Two conventions at non-differentiable points follow the forward differences used before:
+d|β|/dβ = 1 at β = 0, and ΔD̄ = |μ| D̄₁ with d|μ|/dμ = 1 at μ = 0. The tests check the Jacobian
+against finite differences. The solvers are in :mod:`tiv_model.triaxial_solver`.
 """
 
 from __future__ import annotations
@@ -25,17 +30,15 @@ from functools import lru_cache
 import numpy as np
 
 from .energy import energy_exponent, log_energy_constant
-from .errors import ConvergenceError
-from .params import ModelOptions, Parameters, SolverSettings, exponential_bound
-from .state import State
-from .tensors import triaxial, triaxial_fabric
+from .params import ModelOptions, Parameters, exponential_bound
 
 _TINY_Q = 1e-300
 _FD = 1e-7
+_THIRD = 1.0 / 3.0
 
 
 class TriaxialModel:
-    """Scalar residuals and stresses of the axisymmetric backward-Euler increment."""
+    """Scalar residuals, stresses and their exact derivatives of the axisymmetric increment."""
 
     def __init__(self, params: Parameters, options: ModelOptions) -> None:
         self.params = params
@@ -57,6 +60,7 @@ class TriaxialModel:
         self.inv_lambda = 1.0 / params.lambda_star
         self.omega = params.omega
 
+    # -- bound law ------------------------------------------------------------------------------
     def bound_factor(self, eta: float) -> float:
         """f(η) of the bound law (β_b = f(η) q/p in triaxial terms)."""
         if self.exponential:
@@ -66,6 +70,19 @@ class TriaxialModel:
             return self.bound_scale * -math.expm1(-xa) / eta
         return float(self.options.bound_law(np.array(eta), self.params))
 
+    def bound_factor_derivative(self, eta: float) -> float:
+        """df/dη: closed form for the exponential law, central difference for any other."""
+        if self.exponential:
+            a = self.bound_a
+            xa = a * eta
+            if xa < 1e-4:
+                return self.bound_scale * a * a * (-0.5 + xa / 3.0 - xa * xa / 8.0)
+            return self.bound_scale * (a * math.exp(-xa) + math.expm1(-xa) / eta) / eta
+        h = 1e-6 * max(eta, 1e-3)
+        lo = max(eta - h, 0.0)
+        return (self.bound_factor(eta + h) - self.bound_factor(lo)) / (eta + h - lo)
+
+    # -- energy ---------------------------------------------------------------------------------
     def stress(self, ea: float, er: float, beta: float, lnv: float):
         """(σ_a, σ_r, σ̃_a, σ̃_r, Q̃, F) at elastic strains (ε_a, ε_r), fabric β, ln v."""
         om = self.omega
@@ -93,6 +110,70 @@ class TriaxialModel:
             sr = st_r + 2.0 / 9.0 * k4 * ds
         return sa, sr, sta, st_r, quad, factor
 
+    def stress_gradient(self, ea: float, er: float, beta: float, lnv: float):
+        """Stresses and their gradients over (ε^e_a, ε^e_r, β, ln v).
+
+        Returns (σ_a, σ_r, ∇σ_a, ∇σ_r, parts) where ``parts`` holds the mapped quantities the
+        yield function needs: σ̃_a, σ̃_r with gradients, ∂ε̃/∂β with its gradient, Q̃ and F.
+        """
+        om, lam, g2, xx = self.omega, self.lam, self.g2, self.x
+        if self.form_a:
+            ab = abs(beta)
+            b = om * ab * beta
+            db = 2.0 * om * ab
+            sgn2 = 2.0 * om if beta >= 0.0 else -2.0 * om  # d(db)/dβ, +1 convention at β = 0
+            fa = 1.0 - 2.0 * b / 3.0
+            fr = 1.0 + b / 3.0
+            ta, tr = fa * ea, fr * er
+            ta_g = (fa, 0.0, -2.0 / 3.0 * db * ea)
+            tr_g = (0.0, fr, db / 3.0 * er)
+            # ∂ε̃/∂β and its gradient over (ε_a, ε_r, β)
+            ta_b, tr_b = ta_g[2], tr_g[2]
+            ta_b_g = (-2.0 / 3.0 * db, 0.0, -2.0 / 3.0 * sgn2 * ea)
+            tr_b_g = (0.0, db / 3.0, sgn2 / 3.0 * er)
+        else:
+            k4 = om * beta * beta
+            dk4 = 2.0 * om * beta
+            d = ea - er
+            ta = ea - 4.0 / 9.0 * k4 * d
+            tr = er + 2.0 / 9.0 * k4 * d
+            ta_g = (1.0 - 4.0 / 9.0 * k4, 4.0 / 9.0 * k4, -4.0 / 9.0 * dk4 * d)
+            tr_g = (2.0 / 9.0 * k4, 1.0 - 2.0 / 9.0 * k4, 2.0 / 9.0 * dk4 * d)
+            ta_b, tr_b = ta_g[2], tr_g[2]
+            ta_b_g = (-8.0 / 9.0 * om * beta, 8.0 / 9.0 * om * beta, -8.0 / 9.0 * om * d)
+            tr_b_g = (4.0 / 9.0 * om * beta, -4.0 / 9.0 * om * beta, 4.0 / 9.0 * om * d)
+        tv = ta + 2.0 * tr
+        ca = lam * tv + g2 * ta
+        cr = lam * tv + g2 * tr
+        quad = max(lam * tv * tv + g2 * (ta * ta + 2.0 * tr * tr), _TINY_Q)
+        factor = math.exp(xx * (lnv - self.ln_n))
+        kp = 2.0 * self.a * factor * math.exp(self.ln_c0 + (self.a - 1.0) * math.log(quad))
+        kq = (self.a - 1.0) * kp / quad  # ∂kp/∂Q̃
+        sta, st_r = kp * ca, kp * cr
+        # Hessian of Ψ in (ε̃_a, ε̃_r) (radial counted twice: ∂σ̃_a/∂ε̃_r = 2 ∂σ̃_r/∂ε̃_a)
+        h_aa = kp * (lam + g2) + 2.0 * kq * ca * ca
+        h_ar = 2.0 * kp * lam + 4.0 * kq * ca * cr
+        h_ra = kp * lam + 2.0 * kq * ca * cr
+        h_rr = kp * (2.0 * lam + g2) + 4.0 * kq * cr * cr
+        sta_g = [h_aa * ta_g[i] + h_ar * tr_g[i] for i in range(3)] + [xx * sta]
+        str_g = [h_ra * ta_g[i] + h_rr * tr_g[i] for i in range(3)] + [xx * st_r]
+        if self.form_a:
+            sa, sr = fa * sta, fr * st_r
+            sa_g = [fa * sta_g[0], fa * sta_g[1], fa * sta_g[2] - 2.0 / 3.0 * db * sta, xx * sa]
+            sr_g = [fr * str_g[0], fr * str_g[1], fr * str_g[2] + db / 3.0 * st_r, xx * sr]
+        else:
+            ds = sta - st_r
+            sa = sta - 4.0 / 9.0 * k4 * ds
+            sr = st_r + 2.0 / 9.0 * k4 * ds
+            dsg = [sta_g[i] - str_g[i] for i in range(4)]
+            sa_g = [sta_g[i] - 4.0 / 9.0 * k4 * dsg[i] for i in range(4)]
+            sr_g = [str_g[i] + 2.0 / 9.0 * k4 * dsg[i] for i in range(4)]
+            sa_g[2] -= 4.0 / 9.0 * dk4 * ds
+            sr_g[2] += 2.0 / 9.0 * dk4 * ds
+        parts = (sta, st_r, sta_g, str_g, ta_b, tr_b, ta_b_g, tr_b_g, ta_g, tr_g, quad, factor)
+        return sa, sr, sa_g, sr_g, parts
+
+    # -- residuals ------------------------------------------------------------------------------
     def evaluate(self, x, trial_a, trial_r, beta_n, lnv_n):
         """Residuals (5), stresses (σ_a, σ_r) and (p_c, Δε^p_a, Δε^p_r, ΔD̄, w) at x.
 
@@ -150,6 +231,151 @@ class TriaxialModel:
         )
         return res, sa, sr, (pc, dpa, dpr, dbar, w)
 
+    def evaluate_jacobian(self, x, trial_a, trial_r, beta_n, lnv_n):
+        """As :meth:`evaluate`, plus ∂R/∂x (5×5 rows) and ∂(σ_a, σ_r)/∂x (2×5 rows), exact.
+
+        Returns (res, σ_a, σ_r, aux, jac, dsig); res is None where the point is inadmissible.
+        """
+        try:
+            return self._evaluate_jacobian(x, trial_a, trial_r, beta_n, lnv_n)
+        except (ValueError, OverflowError, ZeroDivisionError):
+            return None, math.nan, math.nan, None, None, None
+
+    def _evaluate_jacobian(self, x, trial_a, trial_r, beta_n, lnv_n):
+        ea, er, mu, beta, lnv = x
+        sa, sr, sa_g, sr_g, parts = self.stress_gradient(ea, er, beta, lnv)
+        sta, st_r, sta_g, str_g, ta_b, tr_b, ta_b_g, tr_b_g, ta_g, tr_g, quad, factor = parts
+        r4 = range(4)
+        # gradients below are over s = (ε^e_a, ε^e_r, β, ln v); index 2 is β, 3 is ln v
+        p = (sa + 2.0 * sr) * _THIRD
+        q = sa - sr
+        p_g = [(sa_g[i] + 2.0 * sr_g[i]) * _THIRD for i in r4]
+        q_g = [sa_g[i] - sr_g[i] for i in r4]
+        pc = self.p_r * math.exp(-(lnv - self.ln_n) * self.inv_lambda)
+        pc_v = -pc * self.inv_lambda
+        if not p > 0.0:
+            return None, sa, sr, None, None, None
+        eta = abs(q) / p
+        f = self.bound_factor(eta)
+        fp = self.bound_factor_derivative(eta)
+        bb = f * q / p
+        bb_q = f / p + fp * abs(q) / (p * p)
+        bb_p = -q / (p * p) * (f + fp * eta)
+        bb_g = [bb_q * q_g[i] + bb_p * p_g[i] for i in r4]
+        if self.cf:
+            phi = factor * math.exp(self.ln_c0 + self.a * math.log(quad))
+            # ∂φ/∂ε^e_a = σ_a, ∂φ/∂ε^e_r = 2σ_r (two radial directions), ∂φ/∂β = G, ∂φ/∂ln v = Xφ
+            gfab = sta * ta_b + 2.0 * st_r * tr_b
+            gfab_g = [
+                sta_g[i] * ta_b + 2.0 * str_g[i] * tr_b + sta * ta_b_g[i] + 2.0 * st_r * tr_b_g[i]
+                for i in range(3)
+            ] + [self.x * gfab]
+            shift_g = [-self.x * sa, -self.x * 2.0 * sr, -self.x * gfab, -self.x * self.x * phi]
+            shift = -self.x * phi
+            gap = bb - beta
+            size = 0.5 * pc + self.c * gfab * gap
+            size_g = [self.c * (gfab_g[i] * gap + gfab * bb_g[i]) for i in r4]
+            size_g[2] -= self.c * gfab
+            size_g[3] += 0.5 * pc_v
+        else:
+            shift = 0.0
+            shift_g = [0.0, 0.0, 0.0, 0.0]
+            size = 0.5 * pc
+            size_g = [0.0, 0.0, 0.0, 0.5 * pc_v]
+        ph = p - shift
+        ph_g = [p_g[i] - shift_g[i] for i in r4]
+        rq = q - ph * beta
+        rq_g = [q_g[i] - beta * ph_g[i] for i in r4]
+        rq_g[2] -= ph
+        m2 = self.m2 - beta * beta
+        hh = ph - 0.5 * pc
+        hh_g = [ph_g[0], ph_g[1], ph_g[2], ph_g[3] - 0.5 * pc_v]
+        gap2 = size * size - hh * hh
+        y = rq * rq - m2 * gap2
+        y_g = [2.0 * rq * rq_g[i] - 2.0 * m2 * (size * size_g[i] - hh * hh_g[i]) for i in r4]
+        y_g[2] += 2.0 * beta * gap2
+        iso = 2.0 / 3.0 * (m2 * hh - rq * beta)
+        iso_g = [2.0 / 3.0 * (m2 * hh_g[i] - beta * rq_g[i]) for i in r4]
+        iso_g[2] -= 2.0 / 3.0 * (2.0 * beta * hh + rq)
+        na, nr = 2.0 * rq + iso, -rq + iso
+        na_g = [2.0 * rq_g[i] + iso_g[i] for i in r4]
+        nr_g = [iso_g[i] - rq_g[i] for i in r4]
+        # plastic strain increments Δε^p = (μ/p_c) n and ΔD̄ = |μ/p_c| D̄₁(n, β)
+        sc = mu / pc
+        sc_v = -sc * pc_v / pc
+        dpa, dpr = sc * na, sc * nr
+        dpa_g = [sc * na_g[i] for i in r4]
+        dpr_g = [sc * nr_g[i] for i in r4]
+        dpa_g[3] += sc_v * na
+        dpr_g[3] += sc_v * nr
+        dpa_mu, dpr_mu = na / pc, nr / pc
+        ddn = na - nr
+        wn = na + 2.0 * nr + 2.0 / 3.0 * beta * ddn
+        ddn_g = [na_g[i] - nr_g[i] for i in r4]
+        wn_g = [na_g[i] + 2.0 * nr_g[i] + 2.0 / 3.0 * beta * ddn_g[i] for i in r4]
+        wn_g[2] += 2.0 / 3.0 * ddn
+        d1 = math.sqrt(wn * wn + 4.0 / 9.0 * m2 * ddn * ddn)
+        d1_g = [(wn * wn_g[i] + 4.0 / 9.0 * m2 * ddn * ddn_g[i]) / d1 for i in r4]
+        d1_g[2] -= 4.0 / 9.0 * beta * ddn * ddn / d1
+        asc = abs(sc)
+        ssc = 1.0 if sc >= 0.0 else -1.0
+        dbar = asc * d1
+        dbar_g = [asc * d1_g[i] for i in r4]
+        dbar_g[3] += ssc * sc_v * d1
+        dbar_mu = ssc * d1 / pc
+        cd = self.c * dbar
+        w = sc * wn
+        res = (
+            ea - trial_a + dpa,
+            er - trial_r + dpr,
+            y / (pc * pc),
+            beta * (1.0 + cd) - beta_n - cd * bb,
+            lnv - lnv_n + dpa + 2.0 * dpr,
+        )
+        pc2 = pc * pc
+        r2_g = [y_g[i] / pc2 for i in r4]
+        r2_g[3] -= 2.0 * y * pc_v / (pc2 * pc)
+        cgap = self.c * (beta - bb)
+        r3_g = [cgap * dbar_g[i] - cd * bb_g[i] for i in r4]
+        r3_g[2] += 1.0 + cd
+        rows_g = (
+            [dpa_g[0] + 1.0, dpa_g[1], dpa_g[2], dpa_g[3]],
+            [dpr_g[0], dpr_g[1] + 1.0, dpr_g[2], dpr_g[3]],
+            r2_g,
+            r3_g,
+            [dpa_g[i] + 2.0 * dpr_g[i] for i in r4],
+        )
+        rows_g[4][3] += 1.0
+        mu_col = (dpa_mu, dpr_mu, 0.0, cgap * dbar_mu, dpa_mu + 2.0 * dpr_mu)
+        jac = [[g[0], g[1], m, g[2], g[3]] for g, m in zip(rows_g, mu_col, strict=True)]
+        dsig = [
+            [sa_g[0], sa_g[1], 0.0, sa_g[2], sa_g[3]],
+            [sr_g[0], sr_g[1], 0.0, sr_g[2], sr_g[3]],
+        ]
+        return res, sa, sr, (pc, dpa, dpr, dbar, w), jac, dsig
+
+    def finite_difference_jacobian(self, x, trial_a, trial_r, beta_n, lnv_n, strain_scale,
+                                   base):  # fmt: skip
+        """Forward-difference ∂R/∂x and ∂σ/∂x around ``base`` = (res, σ_a, σ_r) at x, with
+        steps 1e-7 max(|x_j|, typical_j) (the Jacobian used before issue 12); (None, None)
+        where a perturbed point is inadmissible."""
+        res, sa, sr = base
+        typical = (strain_scale, strain_scale, strain_scale, 1e-2, 1e-2)
+        jac = [[0.0] * 5 for _ in range(5)]
+        dsig = [[0.0] * 5 for _ in range(2)]
+        for j in range(5):
+            h = _FD * max(abs(x[j]), typical[j])
+            xp = list(x)
+            xp[j] += h
+            rp, sap, srp, _ = self.evaluate(xp, trial_a, trial_r, beta_n, lnv_n)
+            if rp is None:
+                return None, None
+            for i in range(5):
+                jac[i][j] = (rp[i] - res[i]) / h
+            dsig[0][j] = (sap - sa) / h
+            dsig[1][j] = (srp - sr) / h
+        return jac, dsig
+
 
 @lru_cache(maxsize=64)
 def model_for(params: Parameters, options: ModelOptions) -> TriaxialModel:
@@ -157,46 +383,15 @@ def model_for(params: Parameters, options: ModelOptions) -> TriaxialModel:
     return TriaxialModel(params, options)
 
 
-def _solve(matrix: list[list[float]], rhs: list[float]) -> list[float] | None:
-    """Gaussian elimination with partial pivoting for the small dense systems of the fast path
-    (pure Python: numpy.linalg.solve costs ~20 µs of call overhead for a 5×5)."""
-    n = len(rhs)
-    a = [row[:] + [rhs[i]] for i, row in enumerate(matrix)]
-    for col in range(n):
-        piv = max(range(col, n), key=lambda r: abs(a[r][col]))
-        if a[piv][col] == 0.0 or not math.isfinite(a[piv][col]):
-            return None
-        a[col], a[piv] = a[piv], a[col]
-        pivot_row = a[col]
-        inv = 1.0 / pivot_row[col]
-        for r in range(col + 1, n):
-            row = a[r]
-            factor = row[col] * inv
-            if factor != 0.0:
-                for k in range(col, n + 1):
-                    row[k] -= factor * pivot_row[k]
-    out = [0.0] * n
-    for r in range(n - 1, -1, -1):
-        acc = a[r][n]
-        for k in range(r + 1, n):
-            acc -= a[r][k] * out[k]
-        out[r] = acc / a[r][r]
-    return out
-
-
-def _norm(res, strain_scale):
-    return max(
-        abs(res[0]) / strain_scale,
-        abs(res[1]) / strain_scale,
-        abs(res[2]),
-        abs(res[3]),
-        abs(res[4]) / strain_scale,
-    )
-
-
 def elastic_tangent(model: TriaxialModel, ea: float, er: float, beta: float, lnv: float):
     """2×2 elastic tangent [dσ_a, dσ_r]/[dε_a, dε_r] (radial strain applied to both radial
-    directions), by central differences of the closed-form scalar stress (kPa)."""
+    directions), exact (kPa)."""
+    _, _, sa_g, sr_g, _ = model.stress_gradient(ea, er, beta, lnv)
+    return np.array([[sa_g[0], sa_g[1]], [sr_g[0], sr_g[1]]])
+
+
+def finite_difference_elastic_tangent(model: TriaxialModel, ea, er, beta, lnv):
+    """Central-difference version of :func:`elastic_tangent` (the one used before issue 12)."""
     tangent = np.empty((2, 2))
     h = _FD * max(abs(ea), abs(er), 1e-12)
     for j, (da, dr) in enumerate(((1.0, 0.0), (0.0, 1.0))):
@@ -207,120 +402,7 @@ def elastic_tangent(model: TriaxialModel, ea: float, er: float, beta: float, lnv
     return tangent
 
 
-def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: float,
-                settings: SolverSettings, need_tangent: bool = True):  # fmt: skip
-    """One axisymmetric backward-Euler increment: (new State, 2×2 tangent dσ/dΔε or None)."""
-    par = model.params
-    ea_n, er_n = float(state.elastic_strain[0]), float(state.elastic_strain[1])
-    beta_n = float(state.fabric[0] - state.fabric[1])
-    lnv_n = math.log(state.specific_volume)
-    ta, tr = ea_n + d_axial, er_n + d_radial
-    x0 = [ta, tr, 0.0, beta_n, lnv_n]
-    res, sa, sr, aux = model.evaluate(x0, ta, tr, beta_n, lnv_n)
-    p_trial = (sa + 2.0 * sr) / 3.0
-    if res is None:
-        p_trial = math.nan
-    if not (math.isfinite(p_trial) and p_trial >= settings.minimum_pressure):
-        raise ConvergenceError(
-            f"elastic trial mean stress {p_trial:.4g} kPa below p_min = "
-            f"{settings.minimum_pressure:g} kPa",
-            state,
-        )
-    if res[2] <= 1e-12:
-        tangent = elastic_tangent(model, ta, tr, beta_n, lnv_n) if need_tangent else None
-        new = State(
-            strain=state.strain + triaxial(d_axial, d_radial),
-            elastic_strain=triaxial(ta, tr),
-            stress=triaxial(sa, sr),
-            specific_volume=state.specific_volume,
-            fabric=state.fabric,
-            preconsolidation_pressure=aux[0],
-            plastic_multiplier=state.plastic_multiplier,
-            dissipated_energy=state.dissipated_energy,
-            plastic=False,
-        )
-        return new, tangent
-
-    strain_scale = max(abs(ta), abs(tr), abs(d_axial), abs(d_radial), 1e-14)
-    typical = (strain_scale, strain_scale, strain_scale, 1e-2, 1e-2)
-    x = x0
-    norm = _norm(res, strain_scale)
-    converged = False
-    jac = [[0.0] * 5 for _ in range(5)]
-    dsig = [[0.0] * 5 for _ in range(2)]
-    for _ in range(settings.max_iterations):
-        for j in range(5):
-            h = _FD * max(abs(x[j]), typical[j])
-            xp = list(x)
-            xp[j] += h
-            rp, sap, srp, _ = model.evaluate(xp, ta, tr, beta_n, lnv_n)
-            if rp is None:
-                raise ConvergenceError("inadmissible point during the local Newton", state)
-            for i in range(5):
-                jac[i][j] = (rp[i] - res[i]) / h
-            dsig[0][j] = (sap - sa) / h
-            dsig[1][j] = (srp - sr) / h
-        step = _solve(jac, [-r for r in res])
-        if step is None or not all(math.isfinite(v) for v in step):
-            break
-        alpha = 1.0
-        accepted = False
-        for _ in range(10):
-            xt = [x[i] + alpha * step[i] for i in range(5)]
-            rt, sat, srt, auxt = model.evaluate(xt, ta, tr, beta_n, lnv_n)
-            if rt is not None:
-                nt = _norm(rt, strain_scale)
-                if math.isfinite(nt) and nt < (1.0 - 1e-4 * alpha) * norm:
-                    accepted = True
-                    break
-            alpha *= 0.5
-        if not accepted:
-            converged = norm < 1e3 * settings.tolerance
-            break
-        x, res, sa, sr, aux, norm = xt, rt, sat, srt, auxt, nt
-        if norm < settings.tolerance:
-            converged = True
-            break
-    if not converged:
-        raise ConvergenceError(
-            f"local Newton (triaxial) did not converge (scaled residual {norm:.3g} > "
-            f"{settings.tolerance:g}) for strain increments ({d_axial:.3g}, {d_radial:.3g})",
-            state,
-        )
-    ea, er, mu, beta, lnv = x
-    if mu < -1e3 * settings.tolerance * strain_scale:
-        index = abs(par.energy_exponent) * (1.0 - par.n) * (ea_n + 2.0 * er_n)
-        raise ConvergenceError(
-            f"negative plastic multiplier μ = {mu:.3g}; softening index |X|(1−n)ε^e_v = "
-            f"{index:.3g}" + (" ≥ 1: the parameters are unstable here (X = r/((n−1)λ*) too "
-                              "large, e.g. n close to 1)" if index >= 1.0 else ""),
-            state,
-        )  # fmt: skip
-    pc, dpa, dpr, dbar, w = aux
-    # algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [e_1, e_2] (R_ε = ε^e − ε^e_n − Δε + ...)
-    tangent = np.empty((2, 2)) if need_tangent else None
-    for k in range(2 if need_tangent else 0):
-        col = _solve(jac, [1.0 if i == k else 0.0 for i in range(5)])
-        if col is None:
-            tangent = np.array([[dsig[0][0], dsig[0][1]], [dsig[1][0], dsig[1][1]]])
-            break
-        for i in range(2):
-            tangent[i, k] = sum(dsig[i][j] * col[j] for j in range(5))
-    new = State(
-        strain=state.strain + triaxial(d_axial, d_radial),
-        elastic_strain=triaxial(ea, er),
-        stress=triaxial(sa, sr),
-        specific_volume=math.exp(lnv),
-        fabric=triaxial_fabric(beta),
-        preconsolidation_pressure=pc,
-        plastic_multiplier=state.plastic_multiplier + mu / pc,
-        dissipated_energy=state.dissipated_energy + 0.5 * pc * (dbar + w),
-        plastic=True,
-    )
-    return new, tangent
-
-
-def is_axisymmetric(state: State, control) -> bool:
+def is_axisymmetric(state, control) -> bool:
     """Whether state and control stay diag(a, r, r) (so the fast path applies)."""
     sc = control.stress_controlled
     if any(sc[3:]) or any(control.strain_increment[3:]) or sc[1] != sc[2]:
@@ -330,92 +412,8 @@ def is_axisymmetric(state: State, control) -> bool:
     if not sc[1] and control.strain_increment[1] != control.strain_increment[2]:
         return False
     for vec in (state.stress, state.elastic_strain, state.fabric):
-        scale = max(abs(float(vec[0])), abs(float(vec[1])), 1e-300)
-        if abs(float(vec[1] - vec[2])) > 1e-13 * scale or max(abs(vec[3:])) > 1e-13 * scale:
+        v0, v1, v2, v3, v4, v5 = vec.tolist()
+        tol = 1e-13 * max(abs(v0), abs(v1), 1e-300)
+        if abs(v1 - v2) > tol or max(abs(v3), abs(v4), abs(v5)) > tol:
             return False
     return True
-
-
-def mixed_step(
-    model: TriaxialModel, state: State, control, settings: SolverSettings, guess=None
-) -> State:
-    """Axisymmetric increment with axial/radial stress or strain control (outer Newton)."""
-    sc = (bool(control.stress_controlled[0]), bool(control.stress_controlled[1]))
-    deps = [
-        0.0 if sc[0] else float(control.strain_increment[0]),
-        0.0 if sc[1] else float(control.strain_increment[1]),
-    ]
-    if not (sc[0] or sc[1]):
-        return local_solve(model, state, deps[0], deps[1], settings, need_tangent=False)[0]
-    target = (float(control.stress_target[0]), float(control.stress_target[1]))
-    u = [i for i in (0, 1) if sc[i]]
-    if guess is not None and all(math.isfinite(float(g)) for g in guess[:2]):
-        for i in u:
-            deps[i] = float(guess[i])
-    else:
-        tangent = elastic_tangent(
-            model,
-            float(state.elastic_strain[0]),
-            float(state.elastic_strain[1]),
-            float(state.fabric[0] - state.fabric[1]),
-            math.log(state.specific_volume),
-        )
-        known = [i for i in (0, 1) if not sc[i]]
-        rhs = np.array([target[i] - float(state.stress[i]) for i in u])
-        for row, i in enumerate(u):
-            for k in known:
-                rhs[row] -= tangent[i, k] * deps[k]
-        sol = np.linalg.solve(tangent[np.ix_(u, u)], rhs)
-        for i, val in zip(u, sol, strict=True):
-            deps[i] = float(val)
-    tol = settings.stress_tolerance * max(
-        state.mean_stress, abs(target[0]), abs(target[1]), settings.minimum_pressure
-    )
-    best = math.inf
-    last_good = None
-    correction = None
-    backtracks = 0
-    local_error = ""
-    last_tangent = None
-    for _ in range(settings.max_outer_iterations):
-        try:
-            new, tangent = local_solve(model, state, deps[0], deps[1], settings)
-            res = np.array([float(new.stress[0]) - target[0] if i == 0 else
-                            float(new.stress[1]) - target[1] for i in u])  # fmt: skip
-            rnorm = float(np.max(np.abs(res)))
-            failed = not math.isfinite(rnorm)
-        except ConvergenceError as exc:
-            failed = True
-            local_error = exc.args[0]
-        if failed or (last_good is not None and rnorm > best):
-            backtracks += 1
-            if last_good is None or backtracks > 12:
-                break
-            correction = 0.5 * correction
-            for k, i in enumerate(u):
-                deps[i] = last_good[k] + correction[k]
-            continue
-        if rnorm <= tol:
-            return new
-        best = rnorm
-        last_good = [deps[i] for i in u]
-        last_tangent = tangent
-        try:
-            correction = -np.linalg.solve(tangent[np.ix_(u, u)], res)
-        except np.linalg.LinAlgError:
-            break
-        for k, i in enumerate(u):
-            deps[i] = last_good[k] + float(correction[k])
-    hint = ""
-    if last_tangent is not None:
-        sub = last_tangent[np.ix_(u, u)]
-        if np.min(np.linalg.eigvals(0.5 * (sub + sub.T)).real) <= 0.0:
-            hint = (
-                "; the tangent under this control is not positive (limit point): use strain control"
-            )
-    raise ConvergenceError(
-        "mixed stress/strain control did not converge (the prescribed stress may be beyond "
-        f"what the material can carry, e.g. a stress ratio at or above the critical one{hint})"
-        + (f"; last local failure: {local_error}" if local_error else ""),
-        state,
-    )
