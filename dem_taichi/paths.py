@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from dem_taichi.analysis import Transition, detect_transition
+from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
@@ -127,7 +128,7 @@ class ProtocolRunner:
     def _record(self, stage: str) -> StageRecord:
         return self.log.stage(stage)
 
-    def _relax(self, stage: str, give_up=None) -> tuple[dict, bool]:
+    def _relax(self, stage: str, give_up=None) -> tuple[Measures, bool]:
         c = self.config
         measures, ok, steps = relax(
             self.sim,
@@ -145,10 +146,17 @@ class ProtocolRunner:
         return measures, ok
 
     def _path_state(
-        self, label: str, stage: str, increment: int, targets, measures, relaxed, iterations=0
+        self,
+        label: str,
+        stage: str,
+        increment: int,
+        targets,
+        measures: Measures,
+        relaxed: bool,
+        iterations: int = 0,
     ) -> RelaxedState:
         state = RelaxedState(
-            label, stage, increment, tuple(float(t) for t in targets), dict(measures), relaxed,
+            label, stage, increment, tuple(float(t) for t in targets), measures.copy(), relaxed,
             iterations,
         )  # fmt: skip
         log = self.log
@@ -195,14 +203,14 @@ class ProtocolRunner:
         h = c.compression_increment
         tol = c.pressure_tolerance
 
-        def gas(measures: dict, steps: int) -> bool:
+        def gas(measures: Measures, steps: int) -> bool:
             # a state whose (dynamic) pressure is far below the tolerance after a few checks is
             # clearly not loaded: do not spend the whole relaxation budget on a gas
             return steps >= 4 * c.relax_check_steps and measures["mean_stress"] < 0.1 * tol
 
         measures, ok = self._relax(stage, gas)
         previous = (sim.get_state(), measures)
-        candidate: tuple[dict, dict] | None = None
+        candidate: tuple[dict, Measures] | None = None
         confirmed = 0
         sequence = self.compression_sequence
         for increment in range(c.max_compression_increments):
@@ -327,7 +335,8 @@ class ProtocolRunner:
         self._record(stage).steps += sim.step - before
         if measures["mean_stress"] <= c.pressure_tolerance:
             # gas: I = ε̇ d sqrt(ρ/p) is undefined/meaningless; the gas rate cap applies instead
-            measures = dict(measures, inertial_number=float("nan"))
+            measures = measures.copy()
+            measures["inertial_number"] = float("nan")
         self._record(stage).note(measures, False, c.unbalanced_force_max)
 
     # -- servo ------------------------------------------------------------------------------
@@ -337,13 +346,13 @@ class ProtocolRunner:
         axes: tuple[int, ...],
         weights: np.ndarray,
         targets: np.ndarray,
-        measures: dict,
-    ) -> tuple[dict, int]:
+        measures: Measures,
+    ) -> tuple[Measures, int]:
         """Reach W σ = targets at a relaxed state (:class:`dem_taichi.servo.StressServo`);
         returns the relaxed measures and the number of relaxations."""
         return self.stress_servo(stage, axes, weights, targets, measures, self._record(stage))
 
-    def _output(self, measures: dict, steps: int) -> None:
+    def _output(self, measures: Measures, steps: int) -> None:
         """Append loading records to the history every ``[output] every`` steps."""
         self._since_output += steps
         if self.history is not None and self._since_output >= self.sim.scene.output.every:
@@ -361,7 +370,7 @@ class ProtocolRunner:
                 f"p at A = {p_a:.4g}: raise target_mean_stress"
             )
 
-    def _restore_A(self) -> dict:
+    def _restore_A(self) -> Measures:
         if self.state_A is None:
             raise ProtocolError("state A is not known yet: run compress_to_transition first")
         self.sim.set_state(self.state_A)

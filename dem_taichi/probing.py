@@ -36,6 +36,7 @@ import numpy as np
 import xarray as xr
 
 from dem_taichi.analysis import Plateau, elastic_plateau
+from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import RunLog
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
@@ -85,7 +86,7 @@ class ProbeResult:
     label: str
     path: str
     increment: int
-    measures: dict
+    measures: Measures
     curves: dict[str, DegradationCurve] = field(default_factory=dict)
     linear: object | None = None  # dem_taichi.linear_response.LinearResponse
     dynamic_seconds: float = 0.0
@@ -103,7 +104,7 @@ class ProbeResult:
         return curve.plateau.modulus if curve is not None else math.nan
 
 
-def _relax_strict(sim, config: ProbingConfig, check_steps: int) -> tuple[dict, bool, int]:
+def _relax_strict(sim, config: ProbingConfig, check_steps: int) -> tuple[Measures, bool, int]:
     return relax(
         sim,
         "probe",
@@ -147,7 +148,7 @@ def dynamic_modulus(
         measures, ok, _ = _relax_strict(sim, config, protocol.relax_check_steps)
         out["steps"] += sim.step - start
         applied = -math.log(float(sim.cell_lengths[index]) / float(lengths0[index]))
-        out["stress"].append(measures["stress_xx" if index == 0 else "stress_yy"])
+        out["stress"].append(measures["stress_xx"] if index == 0 else measures["stress_yy"])
         out["strain"].append(applied)
         out["relaxed"].append(ok)
     sim.set_state(base)
@@ -204,7 +205,7 @@ def probe_state(
     label: str = "",
     path: str = "other",
     increment: int = 0,
-    measures: dict | None = None,
+    measures: Measures | None = None,
     verify: bool = True,
 ) -> ProbeResult:
     """Both probes at the current (relaxed) state of ``sim``; the state is restored exactly.
@@ -215,7 +216,7 @@ def probe_state(
     from dem_taichi.state import states_equal
 
     before = sim.get_state()
-    measures = dict(measures) if measures is not None else sim.measure()
+    measures = measures.copy() if measures is not None else sim.measure()
     result = ProbeResult(label, path, increment, measures)
     # relax the copy further, to the probes' own threshold: a path state relaxed only to the
     # path's UFR still creeps, and on a marginal state (K0 near C on the default scene) the

@@ -64,7 +64,7 @@ class StageRecord:
     n_loading_checks: int = 0
     n_loading_checks_above_limit: int = 0
 
-    def note(self, measures: dict, relaxed: bool, ufr_limit: float = math.inf) -> None:
+    def note(self, measures: Measures, relaxed: bool, ufr_limit: float = math.inf) -> None:
         """Keep the maxima of I (states with p > 0 only: I is undefined in a gas) and UFR."""
         i = measures.get("inertial_number", float("nan"))
         u = measures.get("unbalanced_force_ratio", float("nan"))

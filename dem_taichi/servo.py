@@ -32,11 +32,16 @@ from dem_taichi.quasistatic import _control, strain_rate_cap
 __all__ = ["SecantStiffness", "ServoMemory", "StressServo", "initial_jacobian", "rate_factor"]
 
 
-def _controlled(weights: np.ndarray, measures: dict) -> np.ndarray:
-    return weights @ np.array([measures["stress_xx"], measures["stress_yy"]])
+def _stress(measures: Measures) -> np.ndarray:
+    """(σ_xx, σ_yy) of a record."""
+    return np.array([measures["stress_xx"], measures["stress_yy"]])
 
 
-def _strains(measures: dict, axes: list[int]) -> np.ndarray:
+def _controlled(weights: np.ndarray, measures: Measures) -> np.ndarray:
+    return weights @ _stress(measures)
+
+
+def _strains(measures: Measures, axes: list[int]) -> np.ndarray:
     strain = np.array([measures["strain_xx"], measures["strain_yy"]], dtype=float)
     return strain[axes]
 
@@ -134,8 +139,8 @@ class StressServo:
         self,
         sim,
         config: ProtocolConfig,
-        relax: Callable[[str], tuple[dict, bool]],
-        output: Callable[[dict, int], None],
+        relax: Callable[[str], tuple[Measures, bool]],
+        output: Callable[[Measures, int], None],
         say: Callable[[str], None],
         memory: ServoMemory | None = None,
     ) -> None:
@@ -205,11 +210,10 @@ class StressServo:
         checks = 0
         factor = 1.0
         scale = np.abs(targets)
-        residual = targets - weights @ np.array([measures["stress_xx"], measures["stress_yy"]])
+        residual = targets - _controlled(weights, measures)
         near_steps = 0  # steps since the residual first came near the target (or last doubling)
         while steps < c.servo_max_steps:
-            sigma = np.array([measures["stress_xx"], measures["stress_yy"]])
-            residual = targets - weights @ sigma
+            residual = targets - _controlled(weights, measures)
             ufr = measures["unbalanced_force_ratio"]
             if np.all(np.abs(residual) <= 0.5 * c.stress_tolerance * scale) and (
                 math.isfinite(ufr) and ufr < 100.0 * c.relax_unbalanced_force
@@ -219,8 +223,7 @@ class StressServo:
                 measures, ok = self.relax(stage)
                 steps += sim.step - before
                 checks += 1
-                sigma = np.array([measures["stress_xx"], measures["stress_yy"]])
-                residual = targets - weights @ sigma
+                residual = targets - _controlled(weights, measures)
                 self.say(
                     f"    [{stage}] relaxed check {checks}: residual/target "
                     f"{np.round(residual / scale, 5).tolist()} relaxed={ok} steps={steps}"
