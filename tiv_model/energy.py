@@ -39,6 +39,9 @@ from .tensors import (
     trace,
 )
 
+#: S_a = matrix of ε ↦ sym(e_a·ε) for the six Mandel basis tensors, as ``(6, 36)``: the
+#: Mandel matrix of ε ↦ sym(β·ε) is β @ SYMMETRIC_PRODUCT_BASIS reshaped to 6×6.
+SYMMETRIC_PRODUCT_BASIS = symmetric_product_matrix(np.eye(6)).reshape(6, 36)
 #: Largest ω β_s² allowed (strict convexity of φ needs ω β_s² < 3/2).
 CONVEXITY_LIMIT = 1.5
 _TINY_Q = 1e-300
@@ -163,25 +166,60 @@ def stress(elastic_strain_m, specific_volume, fabric_m, params, options=DEFAULT_
 def stiffness(elastic_strain_m, specific_volume, fabric_m, params, options=DEFAULT_OPTIONS):
     """Elastic stiffness D = ∂²φ/∂ε^e∂ε^e as a Mandel matrix ``(..., 6, 6)`` (kPa).
 
-    Closed form D = P D̃ P (see module docstring). Use
+    Closed form D = P D̃ P (see module docstring), evaluated as
+    D = 4(a − 1) s (P c)⊗(P c) + 2 s Q̃ [λ (P 1)⊗(P 1) + 2g P P], s = a F C₀ Q̃^(a−2),
+    c = C:ε̃ (the same terms, without forming D̃), batched in chunks of
+    ``STIFFNESS_CHUNK`` points so that the temporaries stay in cache. Use
     :func:`tiv_model.tensors.mandel_to_tensor4` for the 3×3×3×3 tensor.
     """
     eps = np.asarray(elastic_strain_m, dtype=float)
     beta = np.asarray(fabric_m, dtype=float)
+    shape = np.broadcast_shapes(eps.shape[:-1], beta.shape[:-1], np.shape(specific_volume))
+    eps = np.broadcast_to(eps, shape + (6,)).reshape(-1, 6)
+    beta = np.broadcast_to(beta, shape + (6,)).reshape(-1, 6)
+    volume = np.broadcast_to(np.asarray(specific_volume, dtype=float), shape).reshape(-1)
+    out = np.empty((eps.shape[0], 6, 6))
+    for start in range(0, eps.shape[0], STIFFNESS_CHUNK):
+        part = slice(start, start + STIFFNESS_CHUNK)
+        _stiffness_block(eps[part], volume[part], beta[part], params, options, out[part])
+    return out.reshape(shape + (6, 6))
+
+
+#: Points per block of the batched stiffness (temporaries of ~1 MB).
+STIFFNESS_CHUNK = 2048
+_DIAGONAL = (np.arange(6), np.arange(6))
+
+
+def _stiffness_block(eps, volume, beta, params, options, out) -> None:
+    """D of a block of points ``(n, 6)`` written into ``out`` ``(n, 6, 6)``."""
     a = energy_exponent(params)
-    ln_c0 = log_energy_constant(params)
-    cmat = isotropic_matrix(params)
-    pmat = mapping_matrix(beta, params, options)
-    mapped = np.einsum("...ij,...j->...i", pmat, eps)
-    c_eps = mapped @ cmat
-    quad = np.maximum(np.sum(mapped * c_eps, axis=-1), _TINY_Q)
-    factor = volume_factor(specific_volume, params)
-    scale = a * factor * np.exp(ln_c0 + (a - 2.0) * np.log(quad))
-    d_tilde = scale[..., None, None] * (
-        4.0 * (a - 1.0) * c_eps[..., :, None] * c_eps[..., None, :]
-        + 2.0 * quad[..., None, None] * cmat
-    )
-    return pmat @ d_tilde @ pmat
+    lam = params.k * (1.0 - params.n) - 2.0 * params.g / 3.0
+    g2 = 2.0 * params.g
+    pmat = _mapping_block(beta, params, options)
+    mapped = (pmat @ eps[:, :, None])[:, :, 0]
+    c_eps = g2 * mapped
+    c_eps[:, :3] += (lam * (mapped[:, 0] + mapped[:, 1] + mapped[:, 2]))[:, None]
+    quad = np.maximum(np.sum(mapped * c_eps, axis=1), _TINY_Q)
+    ln_scale = log_energy_constant(params) + (a - 2.0) * np.log(quad)
+    scale = a * volume_factor(volume, params) * np.exp(ln_scale)
+    p_c = (pmat @ c_eps[:, :, None])[:, :, 0]
+    p_one = pmat[:, :, 0] + pmat[:, :, 1] + pmat[:, :, 2]
+    np.multiply((4.0 * (a - 1.0) * scale)[:, None, None] * p_c[:, :, None], p_c[:, None, :], out)
+    s2 = 2.0 * scale * quad
+    out += (s2 * lam)[:, None, None] * p_one[:, :, None] * p_one[:, None, :]
+    out += (s2 * g2)[:, None, None] * (pmat @ pmat)
+
+
+def _mapping_block(beta, params, options) -> np.ndarray:
+    """P(β) of a block ``(n, 6)`` as ``(n, 6, 6)``: S(β) = Σ_a β_a S_a from the constant
+    basis of :func:`tiv_model.tensors.symmetric_product_matrix`."""
+    if options.anisotropy == "A":
+        pmat = (beta @ SYMMETRIC_PRODUCT_BASIS).reshape(-1, 6, 6)
+        pmat *= (-params.omega * fabric_invariant(beta))[:, None, None]
+    else:
+        pmat = -params.omega * beta[:, :, None] * beta[:, None, :]
+    pmat[:, _DIAGONAL[0], _DIAGONAL[1]] += 1.0
+    return pmat
 
 
 def fabric_derivative(elastic_strain_m, specific_volume, fabric_m, params, options=DEFAULT_OPTIONS):
