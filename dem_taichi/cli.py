@@ -83,6 +83,7 @@ def _run(args: argparse.Namespace) -> int:
         taichi_version=".".join(str(v) for v in ti.__version__),
     )
     attrs["execution"] = sim.execution
+    attrs["rod_model"] = scene.particles.rod_model
     schedule = builtin_schedule(scene)
     total = sum(n for _, n, _ in schedule)
     if args.steps is not None:
@@ -94,6 +95,7 @@ def _run(args: argparse.Namespace) -> int:
         attrs=attrs,
         resume=args.resume,
         resume_after_step=sim.step if args.resume else None,
+        variables=sim.history_variables,
     ) as history:
         if not args.resume:
             history.append(sim.measure())

@@ -49,19 +49,18 @@ import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dem_taichi.bonds import rod_axes, unwrapped_chains
-from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
+from dem_taichi.config import Scene
 from dem_taichi.control import AxisControl, CellControl
-from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, kernel_parameters
+from dem_taichi.device_arrays import DEVICE_ARRAYS, kernel_parameters
+from dem_taichi.engine_state import SimulationState
+from dem_taichi.engine_views import SimulationViews
 from dem_taichi.failures import BlowUpError, CapacityError, blowup_error, runaway_kinetic_energy
 from dem_taichi.kernels import layout as L
-from dem_taichi.measures import Measures, history_record
-from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
+from dem_taichi.measures import Measures
 from dem_taichi.runtime import ensure_runtime
 from dem_taichi.scene import (
     GasState,
@@ -72,8 +71,6 @@ from dem_taichi.scene import (
     rod_geometry,
     species_parameters,
 )
-from dem_taichi.snapshot import NetworkSnapshot
-from dem_taichi.state import convert_neighbour_list, upgrade_state
 
 __all__ = [
     "AxisControl",
@@ -100,18 +97,7 @@ class Physics:
     chain: int = 1
 
 
-_PARAMETER_INDEX = {
-    "time_step": L.P_DT,
-    "k_n": L.P_KN,
-    "gamma_n": L.P_GN,
-    "k_t": L.P_KT,
-    "gamma_t": L.P_GT,
-    "mu": L.P_MU,
-    "local_damping": L.P_ALPHA,
-}
-
-
-class Simulation:
+class Simulation(SimulationViews, SimulationState):
     """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
 
     ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
@@ -447,279 +433,3 @@ class Simulation:
             if bar is not None:
                 bar.close()
         return measures if measures is not None else self.measure()
-
-    # ------------------------------------------------------------------------------------------
-    # measures
-    def _measure_sums(self) -> np.ndarray:
-        from dem_taichi.kernels.measures import measure_sums
-
-        t0 = _time.perf_counter()
-        self._launch(measure_sums, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
-        sums = self.a["measures"].to_numpy().astype(float)
-        self.timings["measure"] += _time.perf_counter() - t0
-        return sums
-
-    @property
-    def cell_lengths(self) -> np.ndarray:
-        c = self.a["cell"].to_numpy().astype(float)
-        return c[[L.C_LX, L.C_LY]]
-
-    @property
-    def time(self) -> float:
-        return float(self.a["cell"].to_numpy()[L.C_TIME])
-
-    def _stress_tensor(self, sums: np.ndarray | None = None) -> np.ndarray:
-        sums = self._measure_sums() if sums is None else sums
-        area = float(np.prod(self.cell_lengths))
-        return np.array([[sums[L.M_SXX], sums[L.M_SXY]], [sums[L.M_SYX], sums[L.M_SYY]]]) / area
-
-    def body_positions(self) -> np.ndarray:
-        """Body centroids (n_bodies, 2) wrapped into the cell [0, L) (rods, or the discs of
-        bonded rods)."""
-        s = self.a["pos"].to_numpy().astype(float)
-        return (s - np.floor(s)) * self.cell_lengths
-
-    def body_angles(self) -> np.ndarray:
-        return self.a["angle"].to_numpy().astype(float)
-
-    def rod_positions(self) -> np.ndarray:
-        """Rod centroids (N, 2) wrapped into the cell [0, L) (bonded rods: mean of the discs)."""
-        if not self.bonded:
-            return self.body_positions()
-        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[0]
-
-    def rod_angles(self) -> np.ndarray:
-        """Rod angles θ (N,) (bonded rods: of the end-to-end vector, in (−π, π])."""
-        if not self.bonded:
-            return self.body_angles()
-        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[1]
-
-    def disc_positions(self) -> np.ndarray:
-        """Disc centres (M, 2), rod-major (global disc index r n_s + s); not wrapped."""
-        return self.a["disc_x"].to_numpy().astype(float)
-
-    @property
-    def n_broken_bonds(self) -> int:
-        """Bonds broken so far (0 for rigid rods)."""
-        if not self.bonded:
-            return 0
-        intact = self.a["bond_intact"].to_numpy()
-        has_bond = np.arange(self.n_bodies) % self.geometry.n_spheres != self.geometry.n_spheres - 1
-        return int(np.count_nonzero(has_bond & (intact == 0)))
-
-    @property
-    def history_variables(self):
-        """The history file's variables for this simulation (bonded rods add theirs)."""
-        from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES, HISTORY_VARIABLES
-
-        return HISTORY_VARIABLES + (BONDED_HISTORY_VARIABLES if self.bonded else ())
-
-    def measure(self) -> Measures:
-        """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
-        from dem_taichi.io.schema import stage_code
-
-        sums = self._measure_sums()
-        n_bonds = self.n_rods * (self.geometry.n_spheres - 1) if self.bonded else 0
-        record = history_record(
-            sums,
-            self._stress_tensor(sums),
-            self.cell_lengths,
-            self.reference_lengths,
-            self._rates,
-            self.rod_angles(),
-            self.geometry,
-            self.n_rods,
-            self.step,
-            self.time,
-            stage_code(self._stage),
-            self._mechanical_coordination(),
-            n_bodies=self.n_bodies,
-            n_bonds=n_bonds - int(round(sums[L.M_BROKEN])),
-        )
-        if self.bonded:
-            record["bond_energy"] = float(sums[L.M_U_BOND])
-            record["n_broken_bonds"] = int(round(sums[L.M_BROKEN]))
-        return record
-
-    def stress(self) -> np.ndarray:
-        """Stress tensor (2, 2), compression positive, from the current forces."""
-        return self._stress_tensor()
-
-    def total_energy(self) -> float:
-        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
-        m = self.measure()
-        bonds = m.get("bond_energy", 0.0)
-        return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"] + bonds
-
-    # ------------------------------------------------------------------------------------------
-    # network (dem_taichi.network)
-    def _contact_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
-        a = self.a
-        counts, bits = a["nbr_count"].to_numpy(), a["pair_flags"].to_numpy()
-        return interacting_entries(counts, bits, a["nbr"].to_numpy(), self.capacity)
-
-    def _mechanical_coordination(self) -> float:
-        i, _, packed, bits = self._contact_pairs()
-        return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
-
-    def _snapshot_positions(self) -> np.ndarray:
-        """Body centroids for the snapshot: wrapped, except that the discs of a bonded rod are
-        made contiguous (each bond vector x_h − x_g, no shift)."""
-        positions = self.body_positions()
-        if not self.bonded:
-            return positions
-        chain = self.geometry.n_spheres
-        return unwrapped_chains(positions, chain, self.cell_lengths).reshape(-1, 2)
-
-    def _bond_network(self):
-        """The bonds of a bonded simulation as a :class:`dem_taichi.snapshot.BondNetwork`."""
-        from dem_taichi.bonds import chain_bonds
-        from dem_taichi.snapshot import BondNetwork
-
-        g = chain_bonds(self.n_rods, self.geometry.n_spheres)
-        params = self.a["params"].to_numpy().astype(float)
-        return BondNetwork(
-            chain=self.geometry.n_spheres,
-            g=g,
-            intact=self.a["bond_intact"].to_numpy()[g] == 1,
-            rest_length=float(params[L.P_SPACING]),
-            k_n=float(params[L.P_BOND_KN]),
-            k_t=float(params[L.P_BOND_KT]),
-            k_b=float(params[L.P_BOND_KB]),
-        )
-
-    def snapshot(self) -> NetworkSnapshot:
-        """The interacting network as a :class:`dem_taichi.snapshot.NetworkSnapshot`."""
-        self._measure_sums()
-        return network_snapshot(
-            self._contact_pairs(),
-            self.a["disc_x"].to_numpy().astype(float),
-            self.a["nbr_xi"].to_numpy().astype(float),
-            self.cell_lengths,
-            self._snapshot_positions(),
-            self.body_angles(),
-            self.body,
-            species_parameters(self.scene),
-            self.a["params"].to_numpy().astype(float),
-            self.physics.vdw,
-            bonds=self._bond_network() if self.bonded else None,
-        )
-
-    # ------------------------------------------------------------------------------------------
-    # state, parameters, checkpoints
-    def get_state(self) -> dict[str, np.ndarray]:
-        """Numpy copies of the full state (see :mod:`dem_taichi.state`)."""
-        state = {spec.state_key: self.a[spec.name].to_numpy() for spec in STATE_ARRAYS}
-        return state | {
-            "reference_lengths": self.reference_lengths.copy(),
-            "step": np.array(self.step, dtype=np.int64),
-            "full_list": np.array(self.full_list),
-        }
-
-    def set_state(self, state: dict[str, np.ndarray]) -> None:
-        """Restore a state from :meth:`get_state` (same scene and precision)."""
-        n, m = self.n_bodies, self.n_discs
-        if state["angle"].shape != (n,) or state["neighbours"].shape[0] != m:
-            raise ValueError(
-                f"state of {state['angle'].shape[0]} bodies does not fit this simulation ({n} "
-                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
-            )
-        if state["angle"].dtype != self._real:
-            raise ValueError(
-                f"state precision {state['angle'].dtype} differs from the simulation's "
-                f"{np.dtype(self._real)}"
-            )
-        state = upgrade_state(state, n)
-        state = convert_neighbour_list(state, self.full_list, self.capacity)
-        capacity = state["neighbours"].shape[1]
-        if capacity != self.capacity:
-            self._grow(capacity)
-        a = self.a
-        for spec in STATE_ARRAYS:
-            a[spec.name].from_numpy(np.ascontiguousarray(state[spec.state_key]))
-        self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
-        self.step = int(state["step"])
-        params = state["params"]
-        self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
-        # disc positions are derived: recompute them from the centroids
-        from dem_taichi.kernels.common import place_all_discs
-
-        self._launch(place_all_discs, ns=self.body.n_spheres)
-
-    def set_parameters(self, **values: float) -> None:
-        """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""
-        params = self.a["params"].to_numpy()
-        for name, value in values.items():
-            if name not in _PARAMETER_INDEX:
-                raise ValueError(
-                    f"unknown parameter {name!r}; allowed: {', '.join(sorted(_PARAMETER_INDEX))}"
-                )
-            if not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} = {value!r} must be finite and >= 0")
-            params[_PARAMETER_INDEX[name]] = value
-        self.a["params"].from_numpy(params)
-
-    def get_parameter(self, name: str) -> float:
-        return float(self.a["params"].to_numpy()[_PARAMETER_INDEX[name]])
-
-    @property
-    def time_step(self) -> float:
-        """Δt the kernels integrate with (the runtime parameter; the scene's until
-        :meth:`set_parameters` changes it)."""
-        return self.get_parameter("time_step")
-
-    def set_strain_reference(self) -> None:
-        """Take the current cell as L0 of the logarithmic strains."""
-        self.reference_lengths = self.cell_lengths.astype(np.float64)
-
-    def save_checkpoint(self, path: str | Path) -> Path:
-        """Write the full state and the scene to ``path`` (``.npz``) atomically."""
-        from dem_taichi.io.checkpoint import save_checkpoint
-
-        meta = {
-            "scene_toml": scene_to_toml(self.scene),
-            "precision": self.precision,
-            "arch": self.arch,
-            "execution": self.execution,
-            "deterministic": self.deterministic,
-            "stage": self._stage,
-            "step": int(self.step),
-        }
-        return save_checkpoint(path, self.get_state(), meta)
-
-    @classmethod
-    def from_checkpoint(
-        cls, path: str | Path, arch: str | None = None, precision: str | None = None
-    ) -> Simulation:
-        """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
-        from dem_taichi.io.checkpoint import load_checkpoint
-
-        arrays, meta = load_checkpoint(path)
-        scene = scene_from_toml(meta["scene_toml"])
-        precision = precision or meta["precision"]
-        if precision != meta["precision"]:
-            raise ValueError(
-                f"checkpoint precision {meta['precision']} cannot be resumed as {precision}"
-            )
-        lengths = arrays["cell"][[L.C_LX, L.C_LY]].astype(float)
-        reduced = arrays["reduced_position"].astype(float)
-        gas = GasState(
-            lengths,
-            (reduced - np.floor(reduced)) * lengths,
-            arrays["angle"].astype(float),
-            arrays["velocity"].astype(float),
-            arrays["angular_velocity"].astype(float),
-        )
-        sim = cls(
-            scene,
-            arch=arch or meta["arch"],
-            precision=precision,
-            deterministic=bool(meta.get("deterministic", False)),
-            execution=meta.get("execution"),
-            initial=gas,
-            neighbour_capacity=arrays["neighbours"].shape[1],
-        )
-        sim.set_state(arrays)
-        sim._stage = meta.get("stage", "other")
-        return sim

@@ -192,10 +192,11 @@ def degradation_curve(
 
 
 def linear_probe(sim, sliding_contacts: str = "stuck"):
-    """Linear-response stiffness of the current network (no change to the state)."""
-    from dem_taichi.linear_response import linear_response
+    """Linear-response stiffness of the current network (no change to the state); rigid or
+    bonded rods (:func:`dem_taichi.bonded_response.network_response`)."""
+    from dem_taichi.bonded_response import network_response
 
-    return linear_response(sim.snapshot(), sliding_contacts=sliding_contacts)
+    return network_response(sim.snapshot(), sliding_contacts=sliding_contacts)
 
 
 def probe_state(

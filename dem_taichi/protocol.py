@@ -167,9 +167,13 @@ def run_protocol(
     )
     sim = Simulation(scene, arch=arch, precision=precision)
     recorder = ProbeRecorder(probing, config, log)
-    history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20)
+    attrs["rod_model"] = scene.particles.rod_model
+    variables = sim.history_variables
+    history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20, variables=variables)
     relaxed_attrs = dict(attrs, title=attrs["title"].replace("history", "relaxed path states"))
-    relaxed = HistoryWriter(out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1)
+    relaxed = HistoryWriter(
+        out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1, variables=variables
+    )
     runner = ProtocolRunner(
         sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress, log=log
     )
@@ -214,6 +218,7 @@ def run_protocol(
                 "specific_volume": float(m["specific_volume"]),
                 "fabric_deviator": float(m["fabric_deviator"]),
                 "n_spheres": int(geo.n_spheres),
+                "rod_model": scene.particles.rod_model,
                 "spacing": float(geo.spacing),
                 "diameter": float(geo.diameter),
                 "charge_pattern": effective_pattern,

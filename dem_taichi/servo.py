@@ -96,10 +96,10 @@ class SecantStiffness:
 
 def initial_jacobian(sim, pressure_tolerance: float) -> np.ndarray:
     """dσ/dε (2×2, axial part) of the relaxed network from the linear-response probe."""
-    from dem_taichi.linear_response import linear_response
+    from dem_taichi.bonded_response import network_response
 
     try:
-        response = linear_response(sim.snapshot(), sliding_contacts="free")
+        response = network_response(sim.snapshot(), sliding_contacts="free")
         c = np.asarray(response.stiffness[:2, :2], dtype=float)
         if np.all(np.isfinite(c)) and np.linalg.det(c) > 0:
             return c
