@@ -1,148 +1,187 @@
-"""Speed of the TIV model (not a test): prints a table, writes benchmarks/results/tiv_bench.csv.
+"""Speed of the TIV model, now and at a baseline revision (not a test).
 
-Measures
-- increments per second of a 1000-increment K0 path (axial stress control, ε_r = 0), for the
-  scalar axisymmetric fast path and the general 3×3 (Mandel, numpy) path;
-- the cost of one strain-controlled plastic increment and one elastic increment;
-- batched elastic-moduli evaluations per second (closed-form D, numpy over a batch);
-and writes a cProfile summary of the plastic single-point increment to tiv_bench_profile.txt.
+Prints a table and writes ``benchmarks/results/tiv_bench.csv`` and ``tiv_bench.txt``.
 
-Times are process CPU times (``time.process_time``) so that other jobs on a shared machine
-inflate them less than wall-clock times would; single-threaded code, so CPU time ≈ wall time on an
-idle machine.
+Cases (each measured in this checkout and, with ``--baseline REV``, in a copy of the packages
+``tiv_model`` and ``bridge`` of that git revision run in a subprocess with the same code):
+- a K0 path of 10,000 stress-controlled increments (σ_a 5 → 250 kPa, ε_r = 0, run_path),
+  scalar axisymmetric path, forms A and B: increments/s;
+- the same K0 path with the dataset (``drivers.k0``: what ``python -m tiv_model k0`` does);
+- a K0 path of 100 increments on the general 3×3 (Mandel) path;
+- one strain-controlled plastic increment on each path;
+- batched elastic stiffness D (closed form) for batches of 1, 1000 and 100,000 points;
+- batched integration of many material points (:func:`tiv_model.batch.strain_path`), when the
+  revision has it.
 
-Run: ``.venv/bin/python benchmarks/bench_tiv.py [--quick]``
+Times are process CPU times (``time.process_time``), so that other jobs on a shared machine
+inflate them less than wall-clock times would; single-threaded code.
+
+Run: ``.venv/bin/python benchmarks/bench_tiv.py [--quick] [--baseline 5eb30e9]``
+(5eb30e9 is the last commit before issue 12).
 """
 
 from __future__ import annotations
 
 import argparse
-import cProfile
 import csv
-import io
+import json
+import os
 import platform
-import pstats
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from tiv_model.drivers import run_path
-from tiv_model.energy import stiffness
-from tiv_model.integrate import Control, advance, initial_state
-from tiv_model.params import TABLE1, ModelOptions, SolverSettings
-from tiv_model.tensors import IDENTITY_MANDEL, deviator, triaxial
-
-RESULTS = Path(__file__).resolve().parent / "results"
-FAST = SolverSettings()
-GENERAL = SolverSettings(triaxial_fast_path=False)
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+REPO = HERE.parent
 
 
-def k0_controls(n: int):
+def _k0_controls(n: int):
+    from tiv_model.integrate import Control
+
     targets = np.geomspace(5.0, 250.0, n + 1)[1:]
     return [Control.triaxial(axial_stress=s, radial_strain_increment=0.0) for s in targets]
 
 
-def time_k0(n: int, settings: SolverSettings, options: ModelOptions) -> float:
-    start = initial_state(5.0, TABLE1, options)
+def _cpu(fun, repeat: int = 1, rounds: int = 3) -> float:
+    """Least CPU time per call over ``rounds`` rounds of ``repeat`` calls (after one warm-up)."""
+    fun()
+    best = float("inf")
+    for _ in range(rounds):
+        t0 = time.process_time()
+        for _ in range(repeat):
+            fun()
+        best = min(best, (time.process_time() - t0) / repeat)
+    return best
+
+
+def measure(quick: bool) -> list[tuple[str, float, str]]:
+    """(case, rate, unit) rows for the tiv_model importable here."""
+    from tiv_model import drivers
+    from tiv_model.energy import stiffness
+    from tiv_model.integrate import Control, advance, initial_state
+    from tiv_model.params import TABLE1, ModelOptions, SolverSettings
+    from tiv_model.tensors import IDENTITY_MANDEL, deviator, triaxial
+
+    general = SolverSettings(triaxial_fast_path=False)
+    rows = []
+    n = 2000 if quick else 10_000
+    for form in ("A", "B"):
+        options = ModelOptions(anisotropy=form)
+        start = initial_state(5.0, TABLE1, options)
+        controls = _k0_controls(n)
+        t0 = time.process_time()
+        states, term = drivers.run_path(start, controls, TABLE1, options)
+        elapsed = time.process_time() - t0
+        assert term is None and len(states) == n + 1
+        rows.append((f"K0 path {n} stress-controlled increments, form {form}", n / elapsed,
+                     "increments/s"))  # fmt: skip
     t0 = time.process_time()
-    states, term = run_path(start, k0_controls(n), TABLE1, options, settings)
-    elapsed = time.process_time() - t0
-    assert term is None and len(states) == n + 1
-    return elapsed
-
-
-def k0_state(options: ModelOptions):
-    return run_path(initial_state(5.0, TABLE1, options), k0_controls(60)[:40], TABLE1, options)[0][
-        -1
-    ]
-
-
-def time_single(state, deps, settings, options, repeat: int) -> float:
-    control = Control.strain(deps)
-    advance(state, control, TABLE1, options, settings)
+    ds = drivers.k0(250.0, increments=n)
+    rows.append((f"drivers.k0 {n} increments with the dataset, form A", n /
+                 (time.process_time() - t0), "increments/s"))  # fmt: skip
+    assert ds.sizes["step"] == n + 1
+    n_general = 30 if quick else 100
+    start = initial_state()
     t0 = time.process_time()
-    for _ in range(repeat):
-        new = advance(state, control, TABLE1, options, settings)
-    elapsed = (time.process_time() - t0) / repeat
-    del new
-    return elapsed
-
-
-def time_moduli(batch: int, options: ModelOptions, repeat: int = 5) -> float:
+    drivers.run_path(start, _k0_controls(n_general), settings=general)
+    rows.append((f"K0 path {n_general} increments, general Mandel path, form A",
+                 n_general / (time.process_time() - t0), "increments/s"))  # fmt: skip
+    state = drivers.run_path(start, _k0_controls(60)[:40])[0][-1]
+    control = Control.strain(triaxial(1e-3, 0.0))
+    for name, settings, rep in (("scalar", SolverSettings(), 300), ("general", general, 30)):
+        t = _cpu(lambda s=settings: advance(state, control, TABLE1, ModelOptions(), s), rep)
+        rows.append((f"one strain-controlled plastic increment, {name} path", 1.0 / t,
+                     "increments/s"))  # fmt: skip
     rng = np.random.default_rng(0)
-    eps_v = 10 ** rng.uniform(-3, -1.5, batch)
-    eps = eps_v[:, None] / 3 * IDENTITY_MANDEL + 0.1 * eps_v[:, None] * rng.standard_normal(
-        (batch, 6)
-    )
-    beta = deviator(rng.standard_normal((batch, 6)))
-    beta *= (0.2 * rng.uniform(size=batch) / np.sqrt(1.5 * np.sum(beta * beta, axis=1)))[:, None]
-    v = rng.uniform(1.1, 2.5, batch)
-    stiffness(eps, v, beta, TABLE1, options)
-    t0 = time.process_time()
-    for _ in range(repeat):
-        d = stiffness(eps, v, beta, TABLE1, options)
-    elapsed = (time.process_time() - t0) / repeat
-    assert d.shape == (batch, 6, 6)
-    return batch / elapsed
+    for batch in (1, 1000, 100_000):
+        eps_v = 10 ** rng.uniform(-3, -1.5, batch)
+        eps = eps_v[:, None] / 3 * IDENTITY_MANDEL + 0.1 * eps_v[:, None] * rng.standard_normal(
+            (batch, 6)
+        )
+        beta = deviator(rng.standard_normal((batch, 6)))
+        beta *= (0.2 * rng.uniform(size=batch) / np.sqrt(1.5 * np.sum(beta**2, axis=1)))[:, None]
+        v = rng.uniform(1.1, 2.5, batch)
+        for form in ("A", "B"):
+            options = ModelOptions(anisotropy=form)
+            repeat = max(1, 20_000 // batch)
+            t = _cpu(lambda o=options, a=(eps, v, beta): stiffness(*a, TABLE1, o), repeat)
+            rows.append((f"elastic stiffness D, batch {batch}, form {form}", batch / t,
+                         "evaluations/s"))  # fmt: skip
+    rows.extend(_measure_batch(quick))
+    return rows
+
+
+def _measure_batch(quick: bool) -> list[tuple[str, float, str]]:
+    try:
+        from tiv_model import batch
+    except ImportError:
+        return []
+    rows = []
+    steps = 20
+    for points in (1, 100) if quick else (1, 100, 1000):
+        t = _cpu(lambda p=points: batch.benchmark_path(p, steps), rounds=1)
+        rows.append((f"batched strain path, {points} points x {steps} plastic increments",
+                     points * steps / t, "point-increments/s"))  # fmt: skip
+    return rows
+
+
+def _baseline_rows(revision: str, quick: bool) -> list[tuple[str, float, str]]:
+    """Run :func:`measure` in a subprocess on the packages of ``revision``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = subprocess.run(
+            ["git", "-C", str(REPO), "archive", revision, "tiv_model", "bridge"],
+            check=True, capture_output=True,
+        ).stdout  # fmt: skip
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        env = dict(os.environ, PYTHONPATH=tmp)
+        command = [sys.executable, str(Path(__file__).resolve()), "--worker"]
+        if quick:
+            command.append("--quick")
+        out = subprocess.run(command, env=env, cwd=tmp, check=True, capture_output=True, text=True)
+    return [tuple(row) for row in json.loads(out.stdout.strip().splitlines()[-1])]
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs")
+    parser.add_argument("--baseline", default=None, help="git revision to compare with")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    n_fast = 1000
-    n_general = 100 if args.quick else 1000
-    rows = []
-    for form in ("A", "B"):
-        options = ModelOptions(anisotropy=form)
-        t = time_k0(n_fast, FAST, options)
-        rows.append((f"K0 path {n_fast} increments, fast path, form {form}", n_fast / t,
-                     "increments/s", 1e3 * t / n_fast, "ms/increment"))  # fmt: skip
-        t = time_k0(n_general, GENERAL, options)
-        rows.append((f"K0 path {n_general} increments, general path, form {form}",
-                     n_general / t, "increments/s", 1e3 * t / n_general,
-                     "ms/increment"))  # fmt: skip
-    options = ModelOptions()
-    state = k0_state(options)
-    plastic = triaxial(1e-3, 0.0)
-    elastic = triaxial(-1e-4, 0.0)
-    for label, deps in (("plastic", plastic), ("elastic", elastic)):
-        for name, settings, rep in (("fast", FAST, 500), ("general", GENERAL, 50)):
-            t = time_single(state, deps, settings, options, rep)
-            rows.append((f"one strain-controlled {label} increment, {name} path", 1.0 / t,
-                         "increments/s", 1e3 * t, "ms/increment"))  # fmt: skip
-    for batch in (1, 1000, 100_000):
-        for form in ("A", "B"):
-            rate = time_moduli(batch, ModelOptions(anisotropy=form))
-            rows.append((f"elastic stiffness D, batch {batch}, form {form}", rate,
-                         "evaluations/s", 1e6 / rate, "us/evaluation"))  # fmt: skip
-
+    if args.worker:
+        print(json.dumps(measure(args.quick)))
+        return 0
+    rows = measure(args.quick)
+    before = {}
+    if args.baseline:
+        before = {case: rate for case, rate, _ in _baseline_rows(args.baseline, args.quick)}
     width = max(len(r[0]) for r in rows)
-    print(f"TIV benchmark ({platform.processor() or platform.machine()}, "
-          f"Python {platform.python_version()}, numpy {np.__version__})")  # fmt: skip
-    print(f"{'case':<{width}}  {'rate':>12}  {'unit':<14} {'cost':>10}  unit")
-    for name, rate, unit, cost, cunit in rows:
-        print(f"{name:<{width}}  {rate:12.1f}  {unit:<14} {cost:10.4f}  {cunit}")
+    lines = [
+        f"TIV benchmark ({platform.machine()}, Python {platform.python_version()}, numpy "
+        f"{np.__version__}); CPU time; baseline: {args.baseline or 'none'}",
+        f"{'case':<{width}}  {'rate':>12}  {'baseline':>12}  {'speed-up':>8}  unit",
+    ]
+    for case, rate, unit in rows:
+        base = before.get(case)
+        base_s = f"{base:12.4g}" if base else f"{'—':>12}"
+        gain = f"{rate / base:8.1f}" if base else f"{'—':>8}"
+        lines.append(f"{case:<{width}}  {rate:12.4g}  {base_s}  {gain}  {unit}")
+    text = "\n".join(lines)
+    print(text)
     RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "tiv_bench.txt").write_text(text + "\n")
     with open(RESULTS / "tiv_bench.csv", "w", newline="") as fh:
         writer = csv.writer(fh)
-        writer.writerow(["case", "rate", "rate_unit", "cost", "cost_unit"])
-        for row in rows:
-            writer.writerow([row[0], f"{row[1]:.6g}", row[2], f"{row[3]:.6g}", row[4]])
-
-    profile = cProfile.Profile()
-    control = Control.strain(plastic)
-    profile.enable()
-    for _ in range(300):
-        advance(state, control, TABLE1, options, FAST)
-    profile.disable()
-    buf = io.StringIO()
-    pstats.Stats(profile, stream=buf).sort_stats("tottime").print_stats(12)
-    (RESULTS / "tiv_bench_profile.txt").write_text(
-        "cProfile of 300 plastic single-point increments (fast path)\n" + buf.getvalue()
-    )
-    print(f"wrote {RESULTS / 'tiv_bench.csv'} and tiv_bench_profile.txt")
+        writer.writerow(["case", "rate", "baseline_rate", "unit", "baseline_revision"])
+        for case, rate, unit in rows:
+            base = before.get(case)
+            writer.writerow([case, f"{rate:.6g}", f"{base:.6g}" if base else "", unit,
+                             args.baseline or ""])  # fmt: skip
+    print(f"wrote {RESULTS / 'tiv_bench.csv'} and tiv_bench.txt")
     return 0
 
 

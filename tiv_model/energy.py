@@ -174,11 +174,18 @@ def stiffness(elastic_strain_m, specific_volume, fabric_m, params, options=DEFAU
     """
     eps = np.asarray(elastic_strain_m, dtype=float)
     beta = np.asarray(fabric_m, dtype=float)
-    shape = np.broadcast_shapes(eps.shape[:-1], beta.shape[:-1], np.shape(specific_volume))
-    eps = np.broadcast_to(eps, shape + (6,)).reshape(-1, 6)
-    beta = np.broadcast_to(beta, shape + (6,)).reshape(-1, 6)
-    volume = np.broadcast_to(np.asarray(specific_volume, dtype=float), shape).reshape(-1)
+    volume = np.asarray(specific_volume, dtype=float)
+    shape = eps.shape[:-1]
+    if beta.shape[:-1] != shape or volume.shape != shape:
+        shape = np.broadcast_shapes(shape, beta.shape[:-1], volume.shape)
+        eps = np.broadcast_to(eps, shape + (6,))
+        beta = np.broadcast_to(beta, shape + (6,))
+        volume = np.broadcast_to(volume, shape)
+    eps, beta, volume = eps.reshape(-1, 6), beta.reshape(-1, 6), volume.reshape(-1)
     out = np.empty((eps.shape[0], 6, 6))
+    if eps.shape[0] <= STIFFNESS_CHUNK:
+        _stiffness_block(eps, volume, beta, params, options, out)
+        return out.reshape(shape + (6, 6))
     for start in range(0, eps.shape[0], STIFFNESS_CHUNK):
         part = slice(start, start + STIFFNESS_CHUNK)
         _stiffness_block(eps[part], volume[part], beta[part], params, options, out[part])
