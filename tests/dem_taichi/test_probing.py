@@ -2,7 +2,9 @@
 degradation curve's plateau, and the probes dataset.
 
 The state is a smoke sample compressed isotropically past jamming and relaxed at fixed cell
-(a static packing at p ~ 10^2–10^3 DEM units), built once per module.
+(a static packing at p ~ 10^2–10^3 DEM units), built once per module for each rod model
+(rigid and bonded: the bonded linear response against the dynamic probe is the check of the
+bonded model's linearisation, issue 10).
 """
 
 from __future__ import annotations
@@ -24,13 +26,13 @@ def probing(**changes) -> ProbingConfig:
     return ProbingConfig(**settings)
 
 
-@pytest.fixture(scope="module")
-def packed():
+@pytest.fixture(scope="module", params=["smoke", "smoke_bonded"])
+def packed(request):
     """A relaxed dense smoke packing and its state."""
     from dem_taichi.engine import CellControl, Simulation
     from dem_taichi.protocol import relax
 
-    sim = Simulation(load_scene("smoke"))
+    sim = Simulation(load_scene(request.param))
     while sim.measure()["specific_volume"] > 1.75:
         sim.run(1000, CellControl.strain_rate(0.02, stage="isotropic_to_A"))
     measures, ok, _ = relax(sim, "relax", 1e-9, 1e-12, 500, 60_000)
