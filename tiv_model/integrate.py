@@ -31,7 +31,6 @@ from . import triaxial_solver
 from .dissipation import (
     YieldEvaluation,
     dissipation_rate,
-    normalised_dissipation,
     preconsolidation_pressure,
 )
 from .energy import (
@@ -45,6 +44,7 @@ from .energy import (
     stiffness,
 )
 from .errors import ConvergenceError, ParameterError, SpecificVolumeBelowOneError, TivModelError
+from .local_problem import LNV, MU, SIZE, B, E, LocalProblem
 from .params import (
     DEFAULT_OPTIONS,
     DEFAULT_SETTINGS,
@@ -56,11 +56,7 @@ from .params import (
 from .state import State
 from .tensors import IDENTITY_MANDEL, trace
 
-_E = slice(0, 6)
-_MU = 6
-_B = slice(7, 13)
-_LNV = 13
-_SIZE = 14
+_E, _MU, _B, _LNV, _SIZE = E, MU, B, LNV, SIZE
 _LINE_SEARCH_STEPS = 0.5 ** np.arange(8)
 
 
@@ -236,46 +232,6 @@ class Control:
 # ---------------------------------------------------------------------------------------------
 # local implicit solve (strain-controlled)
 # ---------------------------------------------------------------------------------------------
-class _LocalProblem:
-    """Residual of the implicit plastic increment, vectorised over a batch of unknown vectors."""
-
-    def __init__(self, state: State, strain_increment, params, options, strain_scale):
-        self.params = params
-        self.options = options
-        self.trial = state.elastic_strain + strain_increment
-        self.beta_n = state.fabric
-        self.lnv_n = math.log(state.specific_volume)
-        self.scale = np.ones(_SIZE)
-        self.scale[_E] = strain_scale
-        self.scale[_LNV] = strain_scale
-
-    def evaluate(self, x: np.ndarray):
-        """Residuals (B, 14), stresses (B, 6) and plastic strain increments (B, 6) for x (B, 14)."""
-        params = self.params
-        eps = x[:, _E]
-        mu = x[:, _MU]
-        beta = x[:, _B]
-        v = np.exp(x[:, _LNV])
-        ye = YieldEvaluation(eps, v, beta, params, self.options)
-        pc = ye.preconsolidation
-        dep = (mu / pc)[:, None] * ye.flow
-        dbar = normalised_dissipation(dep, beta, params)
-        res = np.empty_like(x)
-        res[:, _E] = eps - self.trial + dep
-        res[:, _MU] = ye.value / pc**2
-        cd = params.c * dbar
-        res[:, _B] = beta * (1.0 + cd)[:, None] - self.beta_n - cd[:, None] * ye.bound
-        res[:, _LNV] = x[:, _LNV] - self.lnv_n + trace(dep)
-        p = trace(ye.stress) / 3.0
-        bad = ~(p > 0.0)
-        if np.any(bad):
-            res[bad] = np.inf
-        return res, ye.stress, dep
-
-    def norm(self, res: np.ndarray) -> np.ndarray:
-        return np.max(np.abs(res / self.scale), axis=-1)
-
-
 def _finite_difference_steps(x: np.ndarray, strain_scale: float) -> np.ndarray:
     typical = np.empty(_SIZE)
     typical[_E] = strain_scale
@@ -315,7 +271,8 @@ def _local_solve(state: State, strain_increment, params, options, settings):
         return new, stiffness(trial, v_n, state.fabric, params, options)
 
     strain_scale = max(float(np.max(np.abs(trial))), float(np.max(np.abs(deps))), 1e-14)
-    problem = _LocalProblem(state, deps, params, options, strain_scale)
+    problem = LocalProblem(trial, state.fabric, math.log(v_n), params, options, strain_scale)
+    analytic = settings.jacobian == "analytic"
     x = np.concatenate([trial, [0.0], state.fabric, [math.log(v_n)]])
     with np.errstate(all="ignore"):
         res, sig, _ = problem.evaluate(x[None])
@@ -325,13 +282,17 @@ def _local_solve(state: State, strain_increment, params, options, settings):
     dsig = None
     converged = False
     for _ in range(settings.max_iterations):
-        h = _finite_difference_steps(x, strain_scale)
-        batch = np.repeat(x[None], _SIZE, axis=0)
-        batch[np.arange(_SIZE), np.arange(_SIZE)] += h
         with np.errstate(all="ignore"):
-            res_b, sig_b, _ = problem.evaluate(batch)
-        jac = (res_b - res[None]).T / h[None, :]
-        dsig = (sig_b - sig[None]).T / h[None, :]
+            if analytic:
+                out = problem.evaluate_jacobian(x[None])
+                jac, dsig = out[3][0], out[4][0][:, :]
+            else:
+                h = _finite_difference_steps(x, strain_scale)
+                batch = np.repeat(x[None], _SIZE, axis=0)
+                batch[np.arange(_SIZE), np.arange(_SIZE)] += h
+                res_b, sig_b, _ = problem.evaluate(batch)
+                jac = (res_b - res[None]).T / h[None, :]
+                dsig = (sig_b - sig[None]).T / h[None, :]
         if not np.all(np.isfinite(jac)):
             break
         try:
@@ -381,6 +342,10 @@ def _local_solve(state: State, strain_increment, params, options, settings):
     pc = float(ye.preconsolidation)
     dep = (mu / pc) * ye.flow
     d_inc = float(dissipation_rate(dep, beta, pc, params))
+    if analytic:  # the exact Jacobian at the converged point
+        with np.errstate(all="ignore"):
+            out = problem.evaluate_jacobian(x[None])
+        jac, dsig = out[3][0], out[4][0]
     try:
         tangent = dsig @ np.linalg.solve(jac, np.eye(_SIZE)[:, :6])
     except np.linalg.LinAlgError:

@@ -127,3 +127,75 @@ def test_solver_setting_names_are_checked():
         SolverSettings(jacobian="exact")
     with pytest.raises(ValueError, match="mixed_control"):
         SolverSettings(mixed_control="joint")
+
+
+def random_mandel_point(rng):
+    from tiv_model.tensors import deviator
+
+    ev = rng.uniform(0.01, 0.03)
+    eps = ev / 3 * np.array([1.0, 1, 1, 0, 0, 0]) + 0.2 * ev * rng.standard_normal(6)
+    beta = deviator(rng.standard_normal(6))
+    beta *= rng.uniform(0.02, 0.15) / np.sqrt(1.5 * beta @ beta)
+    lnv = math.log(rng.uniform(1.2, 1.8))
+    return np.concatenate([eps, [rng.uniform(1e-5, 1e-3)], beta, [lnv]])
+
+
+@pytest.mark.parametrize(
+    ("options", "law"),
+    list(itertools.product(ALL_OPTIONS, LAWS)),
+    ids=[f"{option_id(o)}-{law}" for o, law in itertools.product(ALL_OPTIONS, LAWS)],
+)
+def test_general_jacobian_matches_central_differences(options, law):
+    from tiv_model.local_problem import LocalProblem
+
+    options = ModelOptions(options.anisotropy, options.constraint_forces, BOUND_LAWS[law])
+    rng = np.random.default_rng(11)
+    points = np.array([random_mandel_point(rng) for _ in range(4)])
+    problem = LocalProblem(points[:, :6] * 1.01, points[:, 7:13] * 0.9, points[:, 13] + 1e-3,
+                           TABLE1, options, np.full(4, 0.02))  # fmt: skip
+    res, sig, dep, jac, dsig = problem.evaluate_jacobian(points)
+    ref_res, ref_sig, ref_dep = problem.evaluate(points)
+    np.testing.assert_allclose(res, ref_res, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(sig, ref_sig, rtol=1e-12)
+    np.testing.assert_allclose(dep, ref_dep, rtol=1e-12, atol=1e-18)
+    for i, x in enumerate(points):
+        steps = 1e-6 * np.maximum(np.abs(x), 1e-4)
+        fd = np.empty((14, 14))
+        fd_sig = np.empty((6, 14))
+        for j in range(14):
+            xp, xm = x.copy(), x.copy()
+            xp[j] += steps[j]
+            xm[j] -= steps[j]
+            rp, sp, _ = problem.evaluate(xp[None], rows=[i])
+            rm, sm, _ = problem.evaluate(xm[None], rows=[i])
+            fd[:, j] = (rp[0] - rm[0]) / (2 * steps[j])
+            fd_sig[:, j] = (sp[0] - sm[0]) / (2 * steps[j])
+        scale = np.maximum(np.abs(fd).max(axis=1, keepdims=True), 1e-300)
+        np.testing.assert_allclose(jac[i] / scale, fd / scale, atol=1e-6)
+        np.testing.assert_allclose(dsig[i], fd_sig, atol=1e-6 * np.abs(fd_sig).max())
+
+
+GENERAL = SolverSettings(triaxial_fast_path=False)
+GENERAL_BEFORE = SolverSettings(triaxial_fast_path=False, jacobian="finite_difference")
+
+
+@pytest.mark.parametrize("options", ALL_OPTIONS, ids=option_id)
+def test_general_path_with_the_exact_jacobian_equals_the_finite_difference_one(options):
+    from tiv_model.integrate import Control, advance, initial_state
+
+    new = drivers.k0_then_unload(100.0, increments=8, unload_increments=2, options=options,
+                                 settings=GENERAL)  # fmt: skip
+    old = drivers.k0_then_unload(100.0, increments=8, unload_increments=2, options=options,
+                                 settings=GENERAL_BEFORE)  # fmt: skip
+    assert_same_path(new, old)
+    # a non-axisymmetric strain path (shear components): only the general path applies
+    state_new = state_old = initial_state(20.0, TABLE1, options)
+    for k in range(6):
+        deps = 1e-3 * np.array([2.0, -0.3, 0.1 * k, 0.4, -0.2, 0.3])
+        control = Control.strain(deps)
+        state_new = advance(state_new, control, TABLE1, options, GENERAL)
+        state_old = advance(state_old, control, TABLE1, options, GENERAL_BEFORE)
+        scale = np.abs(state_old.stress).max()
+        np.testing.assert_allclose(state_new.stress, state_old.stress, atol=1e-9 * scale)
+        np.testing.assert_allclose(state_new.fabric, state_old.fabric, atol=1e-11)
+        assert state_new.specific_volume == pytest.approx(state_old.specific_volume, rel=1e-12)
