@@ -10,8 +10,8 @@ Cases (each measured in this checkout and, with ``--baseline REV``, in a copy of
 - a K0 path of 100 increments on the general 3×3 (Mandel) path;
 - one strain-controlled plastic increment on each path;
 - batched elastic stiffness D (closed form) for batches of 1, 1000 and 100,000 points;
-- batched integration of many material points (:func:`tiv_model.batch.strain_path`), when the
-  revision has it.
+- batched integration of many material points (:func:`tiv_model.batch.strain_path`, general
+  equations), when the revision has it; compare with the single general-path increment.
 
 Times are process CPU times (``time.process_time``), so that other jobs on a shared machine
 inflate them less than wall-clock times would; single-threaded code.
@@ -117,14 +117,23 @@ def measure(quick: bool) -> list[tuple[str, float, str]]:
 
 
 def _measure_batch(quick: bool) -> list[tuple[str, float, str]]:
+    """Batched strain-controlled integration (tiv_model.batch), when the revision has it."""
     try:
         from tiv_model import batch
     except ImportError:
         return []
+    from tiv_model.drivers import run_path
+    from tiv_model.integrate import initial_state
+
+    k0 = run_path(initial_state(), _k0_controls(40))[0]
     rows = []
-    steps = 20
+    steps = 10
+    rng = np.random.default_rng(1)
     for points in (1, 100) if quick else (1, 100, 1000):
-        t = _cpu(lambda p=points: batch.benchmark_path(p, steps), rounds=1)
+        start = batch.BatchState.from_states([k0[10 + i % 30] for i in range(points)])
+        path = [1e-3 * np.array([1.0, -0.2, 0.1, 0.2, 0.0, 0.1]) + 2e-4 * rng.standard_normal(
+            (points, 6)) for _ in range(steps)]  # fmt: skip
+        t = _cpu(lambda b=start, p=path: batch.strain_path(b, p), rounds=1)
         rows.append((f"batched strain path, {points} points x {steps} plastic increments",
                      points * steps / t, "point-increments/s"))  # fmt: skip
     return rows
