@@ -384,6 +384,10 @@ class Scene:
         return self.replace(**sections)
 
 
+#: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
+#: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
+BONDED_DT_SAFETY_LIMIT = 0.4
+
 #: Keys of retired options: older scenes (and the checkpoints written from them) carry them; they
 #: are dropped at load. ``[control] servo_gain`` was the gain of the engine's stress servo
 #: (removed; the protocol's servo, ``[protocol] servo_*``, holds the stresses).
@@ -444,6 +448,14 @@ def _check_scene(scene: Scene) -> None:
             f"{scene.contact.restitution_model!r}: {exc}"
         ) from exc
     p, lr = scene.particles, scene.long_range
+    dt_safety = scene.integration.dt_safety
+    if scene.bonded and dt_safety > BONDED_DT_SAFETY_LIMIT:
+        raise SceneError(
+            f"[integration] dt_safety = {dt_safety} is beyond the measured stability limit of "
+            f"bonded rods, {BONDED_DT_SAFETY_LIMIT} (of the stiffest of the contact duration and "
+            "the bond period; benchmarks/results/bonded_stability.csv): lower dt_safety "
+            "(scenes use 0.15)"
+        )
     if lr.enabled and lr.pattern == "acidic" and p.n_spheres < 3:
         raise SceneError(
             f"[long_range] pattern = 'acidic' needs n_spheres >= 3 (edge and inner discs); "

@@ -332,6 +332,10 @@ def test_bonded_scenes_are_validated_at_load():
         scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nbending = -1.0')
     with pytest.raises(SceneError, match="unknown key"):
         scene_from_toml('[particles]\nrod_model = "bonded"\n[bonds]\nstiffness = 1.0')
+    with pytest.raises(SceneError, match="stability limit of bonded rods, 0.4"):
+        scene_from_toml('[particles]\nrod_model = "bonded"\n[integration]\ndt_safety = 0.45')
+    scene_from_toml('[particles]\nrod_model = "bonded"\n[integration]\ndt_safety = 0.4')
+    scene_from_toml("[integration]\ndt_safety = 0.45")  # rigid rods: the contact limits
 
 
 def test_the_time_step_follows_the_stiffest_of_contact_and_bond():
