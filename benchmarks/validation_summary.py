@@ -52,6 +52,14 @@ def _run_row(folder: Path) -> dict:
     on_iso = (path == "A_to_B") | (labels == "A")
     on_k0 = path == "A_to_C"
     order = np.argsort(p[on_k0])
+    e_v = probes["e_oed_v_linear"].values
+    iso_p = p[on_iso & (p > 0)]
+    # moduli ∝ p^n along A→B: the slope of ln E_oed,v against ln p (the study: n ≈ 0.8)
+    exponent = (
+        float(np.polyfit(np.log(iso_p), np.log(e_v[on_iso & (p > 0)]), 1)[0])
+        if len(iso_p) > 1 else float("nan")
+    )  # fmt: skip
+    at_b = np.flatnonzero(labels == "B")
     row = {
         "run": folder.name,
         "max_i": max(
@@ -77,6 +85,8 @@ def _run_row(folder: Path) -> dict:
         "fabric_A": states["A"]["fabric_deviator"],
         "fabric_C": states["C"]["fabric_deviator"],
         "k0_C": states["C"]["stress_xx"] / states["C"]["stress_yy"],
+        "modulus_exponent": exponent,
+        "ev_over_p_B": float(e_v[at_b[-1]] / p[at_b[-1]]) if at_b.size else float("nan"),
         "seconds": summary["total_seconds"],
         "workers": summary.get("workers", 1),
     }
@@ -97,8 +107,8 @@ def table(rows: list[dict]) -> str:
         "",
         "| run | wall time | max I on the paths | p_A | v_A | v_B | v_C | fabric A → C | "
         "noise sqrt(0.5/N) | max abs fabric A→B | E_h/E_v on A→B (min–max) | "
-        "E_h/E_v along K0 (p ↑) | λ* (R²) | K0 at C |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "E_h/E_v along K0 (p ↑) | λ* (R²) | K0 at C | E_v ∝ p^n on A→B | E_v/p at B |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
@@ -109,7 +119,8 @@ def table(rows: list[dict]) -> str:
             f"{r['fabric_A']:+.3f} → {r['fabric_C']:+.3f} | {r['noise']:.3f} | "
             f"{r['iso_fabric_max']:.3f} | {min(r['iso_ratio']):.2f}–{max(r['iso_ratio']):.2f} | "
             f"{' → '.join(f'{x:.2f}' for x in r['k0_ratio'])} | "
-            f"{r['lambda_star']:.3g} ({r['r2']:.2f}) | {r['k0_C']:.3f} |"
+            f"{r['lambda_star']:.3g} ({r['r2']:.2f}) | {r['k0_C']:.3f} | "
+            f"{r['modulus_exponent']:.2f} | {r['ev_over_p_B']:.0f} |"
         )
     lines += [
         "",
