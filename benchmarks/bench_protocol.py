@@ -95,7 +95,7 @@ def bench_scene(scene_name: str, specific_volume: float, state: str | None) -> d
 def bench_protocol(scene_name: str, out: Path) -> dict:
     from dem_taichi.protocol import run_protocol
 
-    result = run_protocol(scene_name, out, progress=True)
+    result = run_protocol(scene_name, out, progress=True, overwrite=True)
     total = result.total_seconds
     return {
         "scene": scene_name,

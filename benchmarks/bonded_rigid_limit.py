@@ -55,7 +55,7 @@ def run(args) -> None:
             if (folder / "summary.json").exists():
                 continue
             t0 = time.perf_counter()
-            run_protocol(scene, folder, command="benchmarks/bonded_rigid_limit.py")
+            run_protocol(scene, folder, command="benchmarks/bonded_rigid_limit.py", overwrite=True)
             print(f"{model} seed {seed}: {time.perf_counter() - t0:.0f} s", flush=True)
 
 

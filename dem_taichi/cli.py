@@ -12,19 +12,27 @@ strain-controlled isotropic compression at ``[control] compression_strain_rate``
 
 - ``history.nc``: the netCDF history (dem_taichi.io schema), appended every ``[output] every``
   steps and synced, so a killed run leaves a readable file;
-- ``checkpoints/step_*.npz``: checkpoints every ``[output] checkpoint_every`` steps (two kept)
-  and at the end; ``--resume`` continues from the latest one exactly;
-- ``scene.toml``: the full scene (every key).
+- ``checkpoints/checkpoint_<step>.npz``: checkpoints every ``[output] checkpoint_every`` steps
+  (the run's own two latest kept) and at the end; ``--resume`` continues from the latest one
+  exactly, and only with the run's own scene;
+- ``scene.toml``: the full scene (every key);
+- ``run.json``: the run id and the scene's hash (:mod:`dem_taichi.io.run_directory`): a fresh
+  run into a used ``--out`` is refused unless ``--overwrite``.
+
+SIGINT (Ctrl-C) or SIGTERM stops the run at the next output step: a checkpoint is written, the
+history closed, and one line says how to resume; the exit code is 128 + the signal (130 for
+SIGINT). The resumed run continues bit for bit.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 from pathlib import Path
 
-from dem_taichi.config import Scene, SceneError, load_scene, scene_to_toml
+from dem_taichi.config import Scene, SceneError, load_scene, scene_from_toml, scene_to_toml
 
 __all__ = ["main", "builtin_schedule"]
 
@@ -45,31 +53,74 @@ def builtin_schedule(scene: Scene) -> list[tuple[str, int, float]]:
     return stages
 
 
+class _StopSignals:
+    """SIGINT/SIGTERM while running: remember the first (the run stops at the next output step,
+    writes a checkpoint and closes the history); a second one aborts at once."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._previous: dict[int, object] = {}
+
+    def _handle(self, signum, frame) -> None:
+        if self.received is not None:
+            raise KeyboardInterrupt
+        self.received = signum
+        print(
+            f"{signal.Signals(signum).name}: stopping at the next output step with a checkpoint "
+            "(send it again to abort without one)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    def __enter__(self) -> _StopSignals:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+
+def _checkpoint_scene(path: Path) -> str:
+    """The full scene TOML of a checkpoint, rewritten by this code's ``scene_to_toml``."""
+    from dem_taichi.io import checkpoint_meta
+
+    return scene_to_toml(scene_from_toml(checkpoint_meta(path)["scene_toml"]))
+
+
 def _run(args: argparse.Namespace) -> int:
+    from dem_taichi.io import resume_run, start_run
+
+    if args.resume and args.overwrite:
+        raise ValueError("--resume and --overwrite exclude each other: give one of them")
+    if args.steps is not None and args.steps < 0:
+        raise ValueError(f"--steps {args.steps}: allowed values are integers >= 0")
+    scene = load_scene(args.scene)
+    scene_toml = scene_to_toml(scene)
+    out = Path(args.out)
+    if args.resume:
+        run_dir, latest = resume_run(out, scene.scene.name, scene_toml, _checkpoint_scene)
+    else:
+        run_dir, latest = (
+            start_run(out, "run", scene.scene.name, scene_toml, args.overwrite, resume_hint=True),
+            None,
+        )
+    return _simulate(args, scene, run_dir, latest)
+
+
+def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | None) -> int:
     import taichi as ti
 
     from dem_taichi.engine import BlowUpError, CellControl, Simulation
-    from dem_taichi.io import (
-        HistoryWriter,
-        checkpoint_path,
-        latest_checkpoint,
-        provenance_attrs,
-        rotate_checkpoints,
-    )
+    from dem_taichi.io import HistoryWriter, checkpoint_path, provenance_attrs
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    checkpoints = out / "checkpoints"
-    if args.resume:
-        latest = latest_checkpoint(checkpoints)
-        if latest is None:
-            print(f"error: --resume but no checkpoint in {checkpoints}", file=sys.stderr)
-            return 2
+    out = run_dir.path
+    checkpoints = run_dir.checkpoint_dir
+    if latest is not None:
         sim = Simulation.from_checkpoint(latest, arch=args.arch, precision=args.precision)
-        scene = sim.scene
         print(f"resuming from {latest} at step {sim.step}")
     else:
-        scene = load_scene(args.scene)
         sim = Simulation(
             scene, arch=args.arch, precision=args.precision, deterministic=args.deterministic
         )
@@ -84,26 +135,32 @@ def _run(args: argparse.Namespace) -> int:
     )
     attrs["execution"] = sim.execution
     attrs["rod_model"] = scene.particles.rod_model
+    attrs["run_id"] = run_dir.run_id
     schedule = builtin_schedule(scene)
     total = sum(n for _, n, _ in schedule)
     if args.steps is not None:
         total = min(total, args.steps)
     every = scene.output.every
     checkpoint_every = scene.output.checkpoint_every
-    with HistoryWriter(
-        out / "history.nc",
-        attrs=attrs,
-        resume=args.resume,
-        resume_after_step=sim.step if args.resume else None,
-        variables=sim.history_variables,
-    ) as history:
-        if not args.resume:
+    resume = latest is not None
+    with (
+        HistoryWriter(
+            out / "history.nc",
+            attrs=attrs,
+            resume=resume,
+            resume_after_step=sim.step if resume else None,
+            variables=sim.history_variables,
+        ) as history,
+        _StopSignals() as stop,
+    ):
+        last_record = sim.step
+        if not resume:
             history.append(sim.measure())
         start = 0
         try:
             for stage, n_steps, rate in schedule:
                 stage_end = min(start + n_steps, total)
-                while sim.step < stage_end:
+                while sim.step < stage_end and stop.received is None:
                     # run to the next output / checkpoint boundary (absolute step numbers)
                     target = min(stage_end, (sim.step // every + 1) * every)
                     if checkpoint_every:
@@ -117,17 +174,29 @@ def _run(args: argparse.Namespace) -> int:
                     )
                     if sim.step % every == 0 or sim.step == stage_end:
                         history.append(sim.measure())
+                        last_record = sim.step
                     if checkpoint_every and sim.step % checkpoint_every == 0:
-                        sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
-                        rotate_checkpoints(checkpoints, keep=2)
+                        run_dir.add_checkpoint(
+                            sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
+                        )
                 start = start + n_steps
-                if start >= total:
+                if start >= total or stop.received is not None:
                     break
         except BlowUpError as error:
             print(f"error: {error}", file=sys.stderr)
             return 3
-    sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
-    rotate_checkpoints(checkpoints, keep=2)
+        if stop.received is not None and last_record != sim.step:
+            history.append(sim.measure())
+    path = sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
+    run_dir.add_checkpoint(path)
+    if stop.received is not None:
+        name = signal.Signals(stop.received).name
+        print(
+            f"interrupted by {name} at step {sim.step}: checkpoint {path} written, history "
+            f"closed; continue with: python -m dem_taichi run {args.scene} --out {out} --resume",
+            file=sys.stderr,
+        )
+        return 128 + stop.received
     m = sim.measure()
     print(
         f"done: step {sim.step}, v = {m['specific_volume']:.4g}, p = {m['mean_stress']:.4g}, "
@@ -147,7 +216,16 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--arch", choices=("cpu", "gpu"), default="cpu")
     run.add_argument("--precision", choices=("f64", "f32"), default="f64")
     run.add_argument("--steps", type=int, default=None, help="stop after this many steps in all")
-    run.add_argument("--resume", action="store_true", help="continue from the latest checkpoint")
+    run.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out from its latest checkpoint (the same scene only)",
+    )
+    run.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run already in --out (else a used --out is refused)",
+    )
     run.add_argument("--deterministic", action="store_true", help="bitwise reproducible (CPU)")
     run.add_argument("--no-progress", dest="progress", action="store_false")
     sub.add_parser(
@@ -165,6 +243,9 @@ def main(argv: list[str] | None = None) -> int:
     except SceneError as error:
         print(f"scene error: {error}", file=sys.stderr)
         return 2
+    except (ValueError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
 
 
 def _protocol(argv: list[str]) -> int:
@@ -180,6 +261,9 @@ def _protocol(argv: list[str]) -> int:
     except BlowUpError as error:
         print(f"error: {error}", file=sys.stderr)
         return 3
+    except (ValueError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

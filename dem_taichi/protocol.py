@@ -109,6 +109,7 @@ def run_protocol(
     pattern: str | None = None,
     command: str = "dem_taichi.protocol.run_protocol",
     workers: int = 1,
+    overwrite: bool = False,
 ) -> ProtocolResult:
     """Run the whole protocol of a scene and write its results to ``out_dir``.
 
@@ -120,11 +121,21 @@ def run_protocol(
     order of the serial run, and equal it (the serial engine is deterministic and every branch
     starts from the same state A). Stage wall times then overlap, so they add up to more than
     the total.
+
+    ``out_dir`` must not hold a run already (:mod:`dem_taichi.io.run_directory`: ``run.json``,
+    ``history.nc`` or ``checkpoints/``) unless ``overwrite``, which deletes that run's files
+    first; the run's id and scene hash are written to ``out_dir/run.json``.
     """
     import taichi as ti
 
     from dem_taichi.engine import Simulation
-    from dem_taichi.io import HistoryWriter, provenance_attrs, write_configuration, write_dataset
+    from dem_taichi.io import (
+        HistoryWriter,
+        provenance_attrs,
+        start_run,
+        write_configuration,
+        write_dataset,
+    )
     from dem_taichi.probing import ProbeRecorder, probes_dataset
 
     start = time.perf_counter()
@@ -135,8 +146,10 @@ def run_protocol(
     scene = _with_pattern(scene, pattern)
     config = protocol_settings(scene)
     probing = probing_settings(scene)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    run_dir = start_run(
+        out_dir, "protocol", scene.scene.name, scene_to_toml(scene), overwrite=overwrite
+    )
+    out = run_dir.path
     effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
     log = RunLog()  # the one log of the run: the runner and the probe recorder write it
     result = ProtocolResult(
@@ -160,6 +173,7 @@ def run_protocol(
     )
     attrs["scene_toml_effective"] = scene_to_toml(scene)
     attrs["charge_pattern"] = effective_pattern
+    attrs["run_id"] = run_dir.run_id
     attrs["stress_scale_kpa"] = config.stress_scale_kpa
     attrs["stress_scale"] = f"one DEM stress unit (force/length) = {config.stress_scale_kpa:g} kPa"
     attrs["strain_reference"] = (
@@ -268,6 +282,11 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run already in --out (else a used --out is refused)",
+    )
+    parser.add_argument(
         "--workers", type=int, default=1,
         help="processes for the paths from A (A-B, A-C-B', radial) run at once (default 1)",
     )  # fmt: skip
@@ -286,6 +305,7 @@ def main(argv: list[str] | None = None) -> int:
         pattern=args.pattern,
         command=command,
         workers=args.workers,
+        overwrite=args.overwrite,
     )
     print(f"protocol done in {result.total_seconds:.1f} s; results in {result.out_dir}")
     for label, state in result.states.items():

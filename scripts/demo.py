@@ -194,7 +194,9 @@ def run_dem_demo(out_dir: Path, scene: str) -> dict:
 
     _log(f"DEM virtual experiments on scene '{scene}' (CPU) -> {out_dir}")
     started = time.perf_counter()
-    result = run_protocol(scene, out_dir, progress=True, command=f"scripts/demo.py --scene {scene}")
+    result = run_protocol(
+        scene, out_dir, progress=True, command=f"scripts/demo.py --scene {scene}", overwrite=True
+    )  # the demo owns its output folder: a rerun replaces it
     _log(f"DEM part done in {time.perf_counter() - started:.1f} s")
     states = {
         label: {k: float(state.measures[k]) for k in ("mean_stress", "specific_volume",

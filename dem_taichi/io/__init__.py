@@ -19,6 +19,7 @@ and by the bridge: ``open_history(path)``, ``open_probes(path)``, ``open_configu
 
 from .checkpoint import (
     CheckpointError,
+    checkpoint_meta,
     checkpoint_path,
     latest_checkpoint,
     load_checkpoint,
@@ -27,6 +28,7 @@ from .checkpoint import (
 )
 from .provenance import provenance_attrs
 from .readers import open_configuration, open_history, open_probes
+from .run_directory import RunDirectory, RunDirectoryError, resume_run, start_run
 from .schema import (
     CONFIGURATION_VARIABLES,
     HISTORY_VARIABLES,
@@ -45,6 +47,9 @@ __all__ = [
     "STAGE_CODES",
     "CheckpointError",
     "HistoryWriter",
+    "RunDirectory",
+    "RunDirectoryError",
+    "checkpoint_meta",
     "checkpoint_path",
     "latest_checkpoint",
     "load_checkpoint",
@@ -54,10 +59,12 @@ __all__ = [
     "open_history",
     "open_probes",
     "provenance_attrs",
+    "resume_run",
     "rotate_checkpoints",
     "save_checkpoint",
     "stage_code",
     "stage_label",
+    "start_run",
     "write_configuration",
     "write_dataset",
 ]

@@ -166,6 +166,26 @@ def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
     return arrays, dict(header["meta"])
 
 
+def checkpoint_meta(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The caller's metadata of a checkpoint (``meta`` of :func:`save_checkpoint`), read without
+    loading its arrays. Raises like :func:`load_checkpoint`."""
+    source = Path(path)
+    if not source.is_file():
+        raise FileNotFoundError(f"checkpoint {source} does not exist")
+    try:
+        with np.load(source, allow_pickle=False) as archive:
+            if META_KEY not in archive.files:
+                raise CheckpointError(f"{source} is not a dem_taichi checkpoint (no {META_KEY})")
+            header = json.loads(str(archive[META_KEY][()]))
+    except CheckpointError:
+        raise
+    except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError) as error:
+        raise CheckpointError(f"{source} is corrupt or not a checkpoint: {error}") from error
+    if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+        raise CheckpointError(f"{source} is not a {FORMAT_NAME} file")
+    return dict(header.get("meta", {}))
+
+
 def list_checkpoints(directory: str | os.PathLike[str]) -> list[Path]:
     """Checkpoints named by :func:`checkpoint_path` in ``directory``, oldest step first."""
     folder = Path(directory)
@@ -189,7 +209,9 @@ def rotate_checkpoints(directory: str | os.PathLike[str], keep: int = 2) -> list
     """Delete all but the ``keep`` latest checkpoints (and temporary files left by crashed saves).
 
     Returns the deleted paths. Call it after a successful :func:`save_checkpoint`, from the one
-    process that writes checkpoints in ``directory``.
+    process that writes checkpoints in ``directory``. It deletes whatever checkpoints the
+    directory holds; a run rotates with
+    :meth:`dem_taichi.io.run_directory.RunDirectory.add_checkpoint`, which deletes only its own.
     """
     if isinstance(keep, bool) or not isinstance(keep, int) or keep < 1:
         raise ValueError(f"keep must be an int >= 1, got {keep!r}")

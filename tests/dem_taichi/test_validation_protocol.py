@@ -66,7 +66,7 @@ def get_run(pattern: str, tmp_root: Path) -> Run:
     if not (folder / "summary.json").exists():
         from dem_taichi.protocol import run_protocol
 
-        run_protocol("default", folder, pattern=pattern)
+        run_protocol("default", folder, pattern=pattern, overwrite=True)
     _RUNS[pattern] = Run(folder)
     return _RUNS[pattern]
 
@@ -194,7 +194,7 @@ def get_paper_run(tmp_root: Path) -> Run:
     if not (folder / "summary.json").exists():
         from dem_taichi.protocol import run_protocol
 
-        run_protocol("paper", folder, workers=2)
+        run_protocol("paper", folder, workers=2, overwrite=True)
     _RUNS["paper"] = Run(folder)
     return _RUNS["paper"]
 
