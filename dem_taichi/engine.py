@@ -354,7 +354,8 @@ class Simulation(SimulationViews, SimulationState):
 
     def _advance(self, n_steps: int) -> None:
         """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up)."""
-        from dem_taichi.kernels import step as K
+        from dem_taichi.kernels import parallel as K
+        from dem_taichi.kernels.step import run_steps_serial
 
         done = 0
         while done < n_steps:
@@ -365,7 +366,7 @@ class Simulation(SimulationViews, SimulationState):
             t0 = _time.perf_counter()
             ns = self.body.n_spheres
             if self.execution == "serial":
-                self._launch(K.run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
+                self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
                 for _ in range(todo):
                     self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list)

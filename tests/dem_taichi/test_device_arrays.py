@@ -39,11 +39,11 @@ def test_shapes_follow_the_sizes():
 
 def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
     pytest.importorskip("taichi")
-    from dem_taichi.kernels import common, measures, neighbours, pairs, step
+    from dem_taichi.kernels import bonds, common, measures, neighbours, pairs, parallel, step
 
     kernels = [
         obj
-        for module in (common, measures, neighbours, pairs, step)
+        for module in (bonds, common, measures, neighbours, pairs, parallel, step)
         for _, obj in inspect.getmembers(module, inspect.isfunction)
         if obj.__module__ == module.__name__ and hasattr(obj, "_primal")
     ]
@@ -56,11 +56,11 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
 
 def test_every_kernel_array_parameter_has_the_dimension_of_the_table():
     pytest.importorskip("taichi")
-    from dem_taichi.kernels import common, measures, step
+    from dem_taichi.kernels import common, measures, parallel, step
 
     shapes = {a.name: a.shape for a in DEVICE_ARRAYS}
-    kernels = [step.run_steps_serial, step.rebuild_if_needed, step.kick_drift_parallel,
-               step.forces_parallel, step.forces_gather, step.prime_forces,
+    kernels = [step.run_steps_serial, parallel.rebuild_if_needed, parallel.kick_drift_parallel,
+               parallel.forces_parallel, parallel.forces_gather, step.prime_forces,
                measures.measure_sums, common.place_all_discs]  # fmt: skip
     checked = 0
     for kernel in kernels:
