@@ -42,8 +42,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from types import MappingProxyType
 
 import numpy as np
 import xarray as xr
@@ -51,351 +49,23 @@ from scipy.optimize import least_squares
 
 from tiv_model.errors import TivModelError
 from tiv_model.integrate import normally_consolidated_preconsolidation
-from tiv_model.params import (
-    DEFAULT_OPTIONS,
-    PARAMETER_INFO,
-    SYMBOLS,
-    TABLE1,
-    ModelOptions,
-    Parameters,
-)
+from tiv_model.params import ModelOptions, Parameters
 
+from .calibration_options import (
+    DEFAULT_BOUNDS,
+    DEFAULT_SCALES,
+    ELASTIC_MODULI,
+    FABRIC_SERIES,
+    INITIAL_FABRIC,
+    STAGE_PARAMETERS,
+    STAGES,
+    UNITS,
+    CalibrationError,
+    CalibrationOptions,
+)
+from .calibration_result import CalibrationResult, StageFit, covariance_from_jacobian
 from .moduli import moduli_at_states
-from .runs import k0_run
-
-STAGES = ("compressibility", "elastic", "fabric")
-#: Parameters (study symbols) fitted in each stage, before removing the fixed ones.
-STAGE_PARAMETERS: Mapping[str, tuple[str, ...]] = MappingProxyType(
-    {
-        "compressibility": ("N", "lambda_star"),
-        "elastic": ("k", "g", "n", "r", "omega"),
-        "fabric": ("c", "s", "z", "M"),
-    }
-)
-#: Default search bounds (study symbols).
-DEFAULT_BOUNDS: Mapping[str, tuple[float, float]] = MappingProxyType(
-    {
-        "k": (0.1, 1e5),
-        "g": (0.1, 1e5),
-        "n": (0.0, 0.95),
-        "r": (0.0, 5.0),
-        "N": (1.0 + 1e-6, 50.0),
-        "lambda_star": (1e-4, 3.0),
-        "M": (0.05, 3.0),
-        "c": (0.0, 200.0),
-        "s": (1e-3, 200.0),
-        "z": (1.0 + 1e-6, 200.0),
-        "omega": (0.0, 1e3),
-    }
-)
-#: Default residual scales (one standard deviation of the data, in the residual's units).
-DEFAULT_SCALES: Mapping[str, float] = MappingProxyType(
-    {"ln_specific_volume": 0.01, "ln_modulus": 0.05, "fabric": 0.01, "stress_ratio": 0.02}
-)
-FABRIC_SERIES = ("fabric", "stress_ratio", "specific_volume")
-ELASTIC_MODULI = ("e_oed_v", "e_oed_h", "e_cross")
-INITIAL_FABRIC = ("zero", "measured")
-_SYMBOL_TO_NAME = {sym: name for name, sym in SYMBOLS.items()}
-UNITS = {sym: PARAMETER_INFO[name][1] for name, sym in SYMBOLS.items()}
-
-
-class CalibrationError(RuntimeError):
-    """A calibration stage could not be set up or did not succeed; the message says why."""
-
-
-@dataclass(frozen=True)
-class CalibrationOptions:
-    """How to calibrate (defaults follow the study).
-
-    reference_pressure: p_r (kPa), the only dimensional parameter, never fitted.
-    model_options: the model's uncertain parts (anisotropy form, constraint forces, bound law).
-    initial: starting values; parameters listed in ``fixed`` (study symbols) keep them.
-    fit_critical_stress_ratio: fit M in the fabric stage from the K0 stress ratio (else fixed).
-    omega_stage: ``"elastic"`` (default) or ``"fabric"`` (the study's grouping), where ω is fitted.
-    initial_fabric: the model's fabric at A: ``"zero"`` (default, isotropic as in the model's
-        standard start) or ``"measured"`` (the DEM's β at A; p_c from the rotated yield surface,
-        :func:`bridge.runs.start_state`).
-    fabric_series: K0 series fitted in the fabric stage, among ``FABRIC_SERIES``.
-    elastic_moduli: probe moduli fitted in the elastic stage, among ``ELASTIC_MODULI``
-        (the cross term is used only where the probes have it).
-    elastic_paths: probe paths of the elastic stage.
-    compressibility_min_pressure: isotropic points with p below it (kPa) are not fitted.
-    max_k0_increments: most increments of a model K0 run (more DEM points are interpolated).
-    passes: most repetitions of the coupled stages (stops when no parameter changes by more
-        than ``pass_tolerance``, relative, or absolute below 1e-6):
-        compressibility and elastic (cheap) are cycled to a fixed point, then fabric runs once;
-        with ``omega_stage="fabric"`` all three are cycled.
-    scales: residual scales, keys of ``DEFAULT_SCALES``.
-    bounds: per-symbol (low, high) overriding ``DEFAULT_BOUNDS``.
-    penalty: residual value given to each point when a model run fails.
-    method: :func:`scipy.optimize.least_squares` method of every stage: ``"dogbox"``
-        (default: bounds as an active set; on the demo's fabric stage, where z sits at its
-        bound, a third of the model runs of ``"trf"`` for the same cost) or ``"trf"`` (the
-        method before issue 12).
-    """
-
-    reference_pressure: float = 100.0
-    model_options: ModelOptions = DEFAULT_OPTIONS
-    initial: Parameters = TABLE1
-    fixed: tuple[str, ...] = ()
-    fit_critical_stress_ratio: bool = True
-    omega_stage: str = "elastic"
-    initial_fabric: str = "zero"
-    fabric_series: tuple[str, ...] = ("fabric", "stress_ratio")
-    elastic_moduli: tuple[str, ...] = ELASTIC_MODULI
-    elastic_paths: tuple[str, ...] = ("isotropic", "unloading")
-    compressibility_min_pressure: float = 0.0
-    max_k0_increments: int = 12
-    passes: int = 12
-    pass_tolerance: float = 1e-9
-    scales: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_SCALES))
-    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
-    penalty: float = 1e3
-    method: str = "dogbox"
-
-    def __post_init__(self) -> None:
-        if self.method not in ("dogbox", "trf"):
-            raise CalibrationError(f"option method = {self.method!r}: use 'dogbox' or 'trf'")
-        if not (isinstance(self.reference_pressure, (int, float)) and self.reference_pressure > 0):
-            raise CalibrationError(f"reference_pressure = {self.reference_pressure!r} must be > 0")
-        allowed = set(SYMBOLS.values()) - {"p_r"}
-        for name, values, ok in (
-            ("fixed", self.fixed, allowed),
-            ("fabric_series", self.fabric_series, set(FABRIC_SERIES)),
-            ("elastic_moduli", self.elastic_moduli, set(ELASTIC_MODULI)),
-            ("elastic_paths", self.elastic_paths, {"isotropic", "unloading", "k0"}),
-            ("scales", tuple(self.scales), set(DEFAULT_SCALES)),
-            ("bounds", tuple(self.bounds), allowed),
-        ):
-            bad = sorted(set(values) - ok)
-            if bad:
-                raise CalibrationError(
-                    f"option {name}: unknown entries {bad}; allowed {sorted(ok)}"
-                )
-        if self.omega_stage not in ("elastic", "fabric"):
-            raise CalibrationError(
-                f"option omega_stage = {self.omega_stage!r}: use 'elastic' or 'fabric'"
-            )
-        if self.initial_fabric not in INITIAL_FABRIC:
-            raise CalibrationError(
-                f"option initial_fabric = {self.initial_fabric!r}: use one of {INITIAL_FABRIC}"
-            )
-        if not self.fabric_series:
-            raise CalibrationError("option fabric_series must name at least one K0 series")
-        for key in ("passes", "max_k0_increments"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise CalibrationError(f"option {key} = {value!r} must be an integer ≥ 1")
-
-    def start(self) -> Parameters:
-        return self.initial.replace(p_r=float(self.reference_pressure))
-
-    def bound(self, symbol: str) -> tuple[float, float]:
-        return tuple(self.bounds.get(symbol, DEFAULT_BOUNDS[symbol]))  # type: ignore[return-value]
-
-    def scale(self, key: str) -> float:
-        return float(self.scales.get(key, DEFAULT_SCALES[key]))
-
-    def free(self, stage: str) -> tuple[str, ...]:
-        names = [s for s in STAGE_PARAMETERS[stage] if s not in self.fixed]
-        if self.omega_stage == "fabric":
-            names = [s for s in names if s != "omega"]
-            if stage == "fabric" and "omega" not in self.fixed:
-                names.append("omega")
-        if stage == "fabric" and not self.fit_critical_stress_ratio:
-            names = [s for s in names if s != "M"]
-        return tuple(names)
-
-
-def covariance_from_jacobian(jac: np.ndarray) -> np.ndarray:
-    """(JᵀJ)⁻¹ from the SVD of J = U S Vᵀ: V S⁻² Vᵀ, non-negative diagonal by construction.
-
-    Singular values below ``max(S)·max(shape)·eps`` span directions the data do not determine;
-    a parameter with a component along such a direction gets an infinite variance (reported as
-    not determined) instead of the meaningless, possibly negative, value of a plain inverse.
-    """
-    n = jac.shape[1]
-    if jac.size == 0 or not np.all(np.isfinite(jac)):
-        return np.full((n, n), math.inf)
-    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
-    keep = sv > sv.max() * max(jac.shape) * np.finfo(float).eps
-    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
-    if sv.size < n or not np.all(keep):
-        null = vt[~keep] if sv.size == n else np.vstack([vt[~keep], np.eye(n)])
-        weak = np.any(np.abs(null) > 1e-8, axis=0)
-        cov[weak, :] = math.inf
-        cov[:, weak] = math.inf
-    return cov
-
-
-@dataclass
-class StageFit:
-    """Outcome of one stage: values, standard errors, covariance, fit quality."""
-
-    name: str
-    parameters: tuple[str, ...]
-    values: dict[str, float]
-    standard_errors: dict[str, float]
-    covariance: np.ndarray
-    residual_rms: dict[str, float]
-    n_data: int
-    cost: float
-    nfev: int
-    success: bool
-    message: str
-    seconds: float
-    fitted: tuple[tuple[str, str], ...]
-
-    @property
-    def correlation(self) -> np.ndarray:
-        std = np.sqrt(np.diag(self.covariance))
-        with np.errstate(all="ignore"):
-            return self.covariance / np.outer(std, std)
-
-
-@dataclass
-class CalibrationResult:
-    """Calibrated parameters with uncertainty, fit quality and what was fitted (lmfit-like)."""
-
-    params_: Parameters
-    initial_: Parameters
-    stages_: list[StageFit]
-    options: CalibrationOptions
-    passes_run: int
-    history_: list[dict[str, float]] = field(default_factory=list)
-    #: largest relative parameter change in the last pass over coupled stages
-    last_change: float = 0.0
-
-    @property
-    def standard_errors_(self) -> dict[str, float]:
-        out = {}
-        for st in self.stages_:
-            out.update(st.standard_errors)
-        return out
-
-    @property
-    def covariance_(self) -> dict[str, np.ndarray]:
-        return {st.name: st.covariance for st in self.stages_}
-
-    @property
-    def residual_rms_(self) -> dict[str, float]:
-        out = {}
-        for st in self.stages_:
-            out.update(st.residual_rms)
-        return out
-
-    @property
-    def fitted_(self) -> tuple[tuple[str, str], ...]:
-        """(path, variable) pairs that entered a residual."""
-        return tuple(pair for st in self.stages_ for pair in st.fitted)
-
-    @property
-    def fitted_parameters(self) -> tuple[str, ...]:
-        return tuple(p for st in self.stages_ for p in st.parameters)
-
-    def role(self, path: str, variable: str) -> str:
-        """``"fitted"`` if (path, variable) entered the calibration, else ``"out_of_sample"``."""
-        return "fitted" if (path, variable) in self.fitted_ else "out_of_sample"
-
-    def parameter_table(self) -> list[dict[str, object]]:
-        rows = []
-        errors = self.standard_errors_
-        fitted = set(self.fitted_parameters)
-        for sym, value in self.params_.as_symbols().items():
-            stage = next((st.name for st in self.stages_ if sym in st.parameters), "fixed")
-            rows.append(
-                {
-                    "symbol": sym,
-                    "value": value,
-                    "standard_error": errors.get(sym, math.nan),
-                    "units": UNITS[sym],
-                    "stage": stage if sym in fitted else "fixed",
-                    "initial": self.initial_.as_symbols()[sym],
-                }
-            )
-        return rows
-
-    def warnings(self) -> list[str]:
-        out = []
-        if self.last_change >= self.options.pass_tolerance:
-            out.append(
-                f"the coupled stages did not settle within {self.options.passes} passes (last "
-                f"relative parameter change {self.last_change:.2g} ≥ "
-                f"{self.options.pass_tolerance:g})"
-            )
-        for st in self.stages_:
-            if not st.success:
-                out.append(f"stage {st.name}: optimiser did not report success ({st.message})")
-            for sym in st.parameters:
-                err = st.standard_errors.get(sym, math.nan)
-                val = st.values[sym]
-                if not math.isfinite(err) or (val != 0 and err > abs(val)):
-                    out.append(
-                        f"{sym} is poorly determined by the data of stage {st.name} "
-                        f"(standard error {err:.3g} vs value {val:.4g})"
-                    )
-        return out
-
-    def report(self) -> str:
-        """Plain-text report: parameters ± standard errors, fit quality, what was fitted."""
-        lines = ["[[Calibration of the TIV model]]"]
-        lines.append(
-            f"    passes: {self.passes_run}, model options: {self.options.model_options.describe()}"
-        )
-        lines.append("[[Parameters]]")
-        for row in self.parameter_table():
-            err = row["standard_error"]
-            err_s = f"+/- {err:.3g}" if isinstance(err, float) and math.isfinite(err) else ""
-            lines.append(
-                f"    {row['symbol']:<12} = {row['value']:<12.6g} {err_s:<14} [{row['units']}] "
-                f"({row['stage']}; init {row['initial']:.4g})"
-            )
-        for st in self.stages_:
-            lines.append(f"[[Stage {st.name}]]")
-            lines.append(
-                f"    {st.n_data} residuals, cost {st.cost:.4g}, {st.nfev} evaluations, "
-                f"{st.seconds:.2f} s, success {st.success}: {st.message}"
-            )
-            for key, rms in st.residual_rms.items():
-                lines.append(f"    RMS {key}: {rms:.4g}")
-            lines.append("    fitted: " + ", ".join(f"{p}:{v}" for p, v in st.fitted))
-        warnings = self.warnings()
-        if warnings:
-            lines.append("[[Warnings]]")
-            lines.extend(f"    {w}" for w in warnings)
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """JSON-serialisable summary."""
-
-        def clean(x):
-            return float(x) if math.isfinite(float(x)) else None
-
-        return {
-            "parameters": {k: clean(v) for k, v in self.params_.as_symbols().items()},
-            "standard_errors": {k: clean(v) for k, v in self.standard_errors_.items()},
-            "units": dict(UNITS),
-            "model_options": self.options.model_options.describe(),
-            "passes": self.passes_run,
-            "stages": [
-                {
-                    "name": st.name,
-                    "parameters": list(st.parameters),
-                    "residual_rms": {k: clean(v) for k, v in st.residual_rms.items()},
-                    "n_data": st.n_data,
-                    "cost": clean(st.cost),
-                    "nfev": st.nfev,
-                    "success": st.success,
-                    "message": st.message,
-                    "seconds": st.seconds,
-                    "fitted": [list(p) for p in st.fitted],
-                    "correlation": [[clean(c) for c in row] for row in st.correlation],
-                }
-                for st in self.stages_
-            ],
-            "fitted": [list(p) for p in self.fitted_],
-            "warnings": self.warnings(),
-        }
+from .runs import WarmStart, k0_run
 
 
 # ---------------------------------------------------------------------------------------------
@@ -424,6 +94,35 @@ class _Stage:
     def upper_bounds(self) -> dict[str, float]:
         """Stage-specific upper bounds (e.g. convexity of the energy at the measured fabric)."""
         return {}
+
+
+class JointStage(_Stage):
+    """Several stages as one residual (their pieces side by side), e.g. for profiles that let
+    the parameters of coupled stages move together."""
+
+    def __init__(self, stages: list[_Stage]):
+        self.parts = list(stages)
+        self.name = "+".join(st.name for st in self.parts)
+        self.fitted = tuple(pair for st in self.parts for pair in st.fitted)
+
+    def pieces(self, params):
+        out = {}
+        for st in self.parts:
+            out.update(st.pieces(params))
+        return out
+
+    def scales(self):
+        out = {}
+        for st in self.parts:
+            out.update(st.scales())
+        return out
+
+    def upper_bounds(self):
+        out: dict[str, float] = {}
+        for st in self.parts:
+            for key, value in st.upper_bounds().items():
+                out[key] = min(value, out.get(key, math.inf))
+        return out
 
 
 class _Compressibility(_Stage):
@@ -526,6 +225,8 @@ class _Fabric(_Stage):
         }
         self._scales = {f"k0:{key[n]}": options.scale(key[n]) for n in options.fabric_series}
         self.fitted = tuple(("k0", n) for n in options.fabric_series)
+        # the last run's increments start the next run's Newton (nearby parameters)
+        self.warm = WarmStart()
 
     def pieces(self, params):
         run = k0_run(
@@ -535,6 +236,7 @@ class _Fabric(_Stage):
             self.model_options,
             self.max_increments,
             start_fabric=self.start_fabric,
+            warm=self.warm,
         )
         out = {}
         for name, data in self.data.items():
@@ -575,20 +277,20 @@ def _fit_stage(
     sizes = {k: v.size for k, v in base.items()}
     n_data = sum(sizes.values())
     if not free:
-        values = {}
+        cost = 0.5 * float(sum(np.sum((v / scales[k]) ** 2) for k, v in base.items()))
         fit = StageFit(
             stage.name,
             (),
-            values,
+            {},
             {},
             np.zeros((0, 0)),
             {k: float(np.sqrt(np.mean(v**2))) for k, v in base.items()},
             n_data,
-            0.0,
-            0,
+            cost,
+            1,
             True,
             "no free parameter",
-            0.0,
+            time.perf_counter() - t0,
             stage.fitted,
         )
         return params, fit
@@ -617,10 +319,10 @@ def _fit_stage(
         x_scale="jac",
         method=options.method,
         diff_step=diff_step,
-        xtol=1e-12,
-        ftol=1e-12,
-        gtol=1e-12,
-        max_nfev=200 * (len(free) + 1),
+        xtol=options.tolerance,
+        ftol=options.tolerance,
+        gtol=options.tolerance,
+        max_nfev=options.max_evaluations or 200 * (len(free) + 1),
     )
     final = residuals(sol.x)
     if np.all(final == options.penalty):
@@ -650,8 +352,44 @@ def _fit_stage(
         message=str(sol.message),
         seconds=time.perf_counter() - t0,
         fitted=stage.fitted,
+        bounds={s: (float(a), float(b)) for s, a, b in zip(free, lo, hi, strict=True)},
+        at_bound=_at_bound(free, sol.x, lo, hi),
     )
     return fitted_params, fit
+
+
+def _at_bound(free, x, lo, hi) -> dict[str, str]:
+    """Which free parameters ended on (within 1e-6 relative of) a bound: "lower" or "upper"."""
+    out = {}
+    for sym, value, a, b in zip(free, x, lo, hi, strict=True):
+        if abs(value - a) <= 1e-6 * max(1.0, abs(a)):
+            out[sym] = "lower"
+        elif math.isfinite(b) and abs(value - b) <= 1e-6 * max(1.0, abs(b)):
+            out[sym] = "upper"
+    return out
+
+
+def build_stages(
+    series: Mapping[str, xr.Dataset],
+    probes: Mapping[str, xr.Dataset],
+    options: CalibrationOptions,
+    stages: tuple[str, ...] = STAGES,
+) -> dict[str, _Stage]:
+    """The residual models of the stages, by name (what :func:`calibrate` fits)."""
+    built: dict[str, _Stage] = {}
+    for stage in stages:
+        if stage == "compressibility":
+            built[stage] = _Compressibility(series["isotropic"], options)
+        elif stage == "elastic":
+            built[stage] = _Elastic(probes, options)
+        else:
+            built[stage] = _Fabric(series["k0"], options)
+    return built
+
+
+def fit_stage(stage, params: Parameters, free: tuple[str, ...], options: CalibrationOptions):
+    """Fit one stage's ``free`` parameters from ``params``: (fitted Parameters, StageFit)."""
+    return _fit_stage(stage, params, free, options)
 
 
 def calibrate(
@@ -676,14 +414,7 @@ def calibrate(
             raise CalibrationError(
                 f"stage {stage} needs the {needs[stage]!r} path series; given: {sorted(series)}"
             )
-    built: dict[str, _Stage] = {}
-    for stage in stages:
-        if stage == "compressibility":
-            built[stage] = _Compressibility(series["isotropic"], options)
-        elif stage == "elastic":
-            built[stage] = _Elastic(probes, options)
-        else:
-            built[stage] = _Fabric(series["k0"], options)
+    built = build_stages(series, probes, options, stages)
     _check_identifiable(built, options)
     params = options.start()
     initial = params
@@ -738,3 +469,24 @@ def _check_identifiable(built: Mapping[str, _Stage], options: CalibrationOptions
             "stage elastic: r needs probes at the same p with different v (the constant-p "
             "unloading path); none given, so fix r, e.g. CalibrationOptions(fixed=('r',))"
         )
+
+
+__all__ = [
+    "DEFAULT_BOUNDS",
+    "DEFAULT_SCALES",
+    "ELASTIC_MODULI",
+    "FABRIC_SERIES",
+    "INITIAL_FABRIC",
+    "STAGES",
+    "STAGE_PARAMETERS",
+    "UNITS",
+    "CalibrationError",
+    "CalibrationOptions",
+    "CalibrationResult",
+    "JointStage",
+    "StageFit",
+    "build_stages",
+    "calibrate",
+    "fit_stage",
+    "covariance_from_jacobian",
+]

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from .calibration import CalibrationResult
+from .calibration_result import CalibrationResult
 from .predict import summary
 
 

@@ -27,7 +27,7 @@ from tiv_model.drivers import record, run_path
 from tiv_model.errors import TivModelError
 from tiv_model.integrate import Control, initial_state
 from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
-from tiv_model.state import State
+from tiv_model.state import IncrementGuess, State
 
 #: Names of the per-point results (tiv_model.drivers.VARIABLES subset).
 RUN_VARIABLES = (
@@ -69,9 +69,27 @@ def _interpolate(results, used: np.ndarray, n_points: int, coordinate: np.ndarra
     return out
 
 
-def _run(start: State, controls, params, options, settings=None) -> tuple[list[State], str | None]:
+class WarmStart:
+    """Starting values for repeated runs of one path with nearby parameters (a calibration's
+    evaluations and finite differences): the increments of the last run
+    (:class:`tiv_model.state.IncrementGuess`), used only as the Newton's starting points."""
+
+    def __init__(self) -> None:
+        self.guesses: list[IncrementGuess] | None = None
+
+    def update(self, states: list[State]) -> None:
+        pairs = zip(states[:-1], states[1:], strict=True)
+        self.guesses = [IncrementGuess.between(a, b) for a, b in pairs]
+
+
+def _run(start: State, controls, params, options, settings=None, warm: WarmStart | None = None):
     kwargs = {} if settings is None else {"settings": settings}
-    return run_path(start, controls, params, options, on_error="raise", **kwargs)
+    guesses = warm.guesses if warm is not None else None
+    states, term = run_path(start, controls, params, options, on_error="raise",
+                            guesses=guesses, **kwargs)  # fmt: skip
+    if warm is not None:
+        warm.update(states)
+    return states, term
 
 
 def start_state(
@@ -149,19 +167,20 @@ def k0_run(
     max_increments: int = 40,
     return_state: bool = False,
     start_fabric: float = 0.0,
+    warm: WarmStart | None = None,
 ):
     """Model K0 loading (ε_r = 0) through the DEM's σ_a,k (kPa) from state A at p_A.
 
     The first entry of ``axial_stress`` is the start point (its value is replaced by p_A).
     With ``return_state`` also returns the model's last State (C); ``start_fabric`` is the
-    model's β at A (:func:`start_state`).
+    model's β at A (:func:`start_state`); ``warm`` carries starting values between runs.
     """
     sa = np.asarray(axial_stress, dtype=float).copy()
     sa[0] = float(start_mean_stress)
     start = start_state(start_mean_stress, params, options, start_fabric)
     used = _subsample(sa.size, max_increments)
     controls = [Control.triaxial(axial_stress=x, radial_strain_increment=0.0) for x in sa[used]]
-    states, _ = _run(start, controls, params, options)
+    states, _ = _run(start, controls, params, options, warm=warm)
     coordinate = np.log(np.maximum.accumulate(sa))
     out = _interpolate(_collect(states, params, options), used, sa.size, coordinate)
     return (out, states[-1]) if return_state else out

@@ -18,7 +18,7 @@ error message in the dataset attribute ``termination``.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
@@ -204,10 +204,14 @@ def run_path(
     settings=DEFAULT_SETTINGS,
     on_error: str = "raise",
     progress: Callable[[int, State], None] | None = None,
+    guesses: Sequence[IncrementGuess | None] | None = None,
 ) -> tuple[list[State], str | None]:
     """Apply a sequence of controls; returns the states (initial included) and a termination
     message (None when complete). Each increment's Newton starts from the previous increment's
-    changes (:class:`tiv_model.state.IncrementGuess`), scaled to the new stress step.
+    changes (:class:`tiv_model.state.IncrementGuess`), scaled to the new stress step, or from
+    ``guesses[i]`` where given (e.g. the increments of a run with nearby parameters: a
+    calibration's finite differences start next to the solution). Starting values change the
+    iterations, never the converged states.
     """
     if on_error not in ("raise", "stop"):
         raise ParameterError(f"on_error = {on_error!r}: use 'raise' or 'stop'")
@@ -226,6 +230,8 @@ def run_path(
             if den > 0.0:
                 num = math.sqrt(sum(d * d for d, m in zip(stress_step, mask, strict=True) if m))
                 guess = IncrementGuess.between(previous, current, num / den)
+        if guesses is not None and i < len(guesses) and guesses[i] is not None:
+            guess = guesses[i]
         try:
             new = advance(current, control, params, options, settings, guess=guess)
         except TivModelError as exc:

@@ -312,13 +312,15 @@ def monolithic_step(
 ) -> State:
     """Mixed-control increment by one Newton (module docstring); ConvergenceError on failure.
 
-    After a plastic increment the plastic Newton is tried first, from the strains of ``guess``
-    (it is the likely case on a loading path); a solution with μ ≥ 0 is the increment's. When
-    it fails or gives μ < 0 the elastic predictor decides, as it does after an elastic one.
+    After a plastic increment, or when ``guess`` predicts a plastic one, the plastic Newton is
+    tried first, from ``guess`` (the likely case on a loading path); a solution with μ ≥ 0 is
+    the increment's. When it fails or gives μ < 0 the elastic predictor decides, as it does
+    after an elastic one.
     """
     sc, deps, target = _controls(control)
     ea_n, er_n = float(state.elastic_strain[0]), float(state.elastic_strain[1])
-    if state.plastic:
+    predicted = isinstance(guess, IncrementGuess) and guess.plastic_multiplier > 0.0
+    if state.plastic or predicted:
         try:
             if isinstance(guess, IncrementGuess):
                 start = _predicted_start(model, state, guess)
