@@ -33,13 +33,24 @@ from pathlib import Path
 
 import xarray as xr
 
-from tiv_model.params import BOUND_LAWS, TABLE1, ModelOptions
+from tiv_model.command_line import (
+    ArgumentParser,
+    UsageError,
+    add_common_flags,
+    int_in_range,
+    positive_float,
+    run_command,
+)
+from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
-from .calibration import STAGES, CalibrationOptions, calibrate
+from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
 from .figures import write_figures
+from .identifiability import identifiability
 from .predict import predict_paths, predict_probes, summary
 from .report import report_markdown, write_report
 from .series import PATHS, Convention, SeriesError, all_probe_series, history_series
+
+PROG = "python -m bridge.pipeline"
 
 
 @dataclass(frozen=True)
@@ -54,6 +65,9 @@ class PipelineOptions:
     k0_mode: ``"element"`` (K0 driver) or ``"stress"`` (DEM stress history) for predictions.
     max_increments: most model increments per predicted path.
     figures: write the figures.
+    identifiability: profile likelihoods of the fitted parameters
+        (:mod:`bridge.identifiability`) in ``calibration.json`` (``"identifiability"``), the
+        text report and ``report.md``.
     """
 
     stress_scale_kpa: float | None = None
@@ -66,6 +80,7 @@ class PipelineOptions:
     k0_mode: str = "element"
     max_increments: int = 40
     figures: bool = True
+    identifiability: bool = True
 
 
 def pipeline_options(options) -> PipelineOptions:
@@ -139,13 +154,18 @@ def calibrate_from_results(
     history = _open(used_history, "history")
     scale, scale_note = _stress_scale(options, history, used_history)
     convention = Convention(scale, options.convention, options.fabric_scale)
-    available = []
+    available, reasons = [], {}
     for path in PATHS:
         try:
             history_series(history, convention, (path,))
             available.append(path)
-        except SeriesError:
-            pass
+        except SeriesError as error:
+            reasons[path] = str(error)
+    if not available:  # say why no path could be read instead of "given: []"
+        raise SeriesError(
+            f"no loading path could be read from {used_history}: "
+            + "; ".join(f"{path}: {reason}" for path, reason in reasons.items())
+        )
     series = history_series(history, convention, tuple(available))
     stages = tuple(options.stages)
     probes: dict[str, xr.Dataset] = {}
@@ -156,6 +176,8 @@ def calibrate_from_results(
     elif "elastic" in stages:
         stages = tuple(s for s in stages if s != "elastic")
     result = calibrate(series, probes, options.calibration, stages)
+    seconds_calibration = time.perf_counter() - t0
+    ide = identifiability(result, series, probes) if options.identifiability else None
     model_options = options.calibration.model_options
     runs = predict_paths(
         result,
@@ -192,9 +214,10 @@ def calibrate_from_results(
         "stages": ", ".join(stages),
         "model fabric at A": options.calibration.initial_fabric,
     }
-    text = report_markdown(result, runs, model_probes, probes, description, figures, out)
+    text = report_markdown(result, runs, model_probes, probes, description, figures, out, ide)
     files["report"] = str(write_report(out / "report.md", text))
-    (out / "calibration.txt").write_text(result.report() + "\n")
+    extra = "" if ide is None else "\n[[What the data determine]]\n" + ide.statement() + "\n"
+    (out / "calibration.txt").write_text(result.report() + "\n" + extra)
     files["calibration_text"] = str(out / "calibration.txt")
     rows = summary(runs) + summary({f"{p} (probes)": ds for p, ds in model_probes.items()})
     outcome = {
@@ -211,7 +234,13 @@ def calibrate_from_results(
         "files": files,
     }
     outcome["seconds"] = time.perf_counter() - t0
+    outcome["seconds_calibration"] = seconds_calibration
+    if ide is not None:
+        outcome["identifiability"] = ide.to_dict()
+        outcome["seconds_identifiability"] = ide.seconds
     calibration = result.to_dict() | {"data": outcome["data"], "predictions": rows}
+    if ide is not None:
+        calibration["identifiability"] = ide.to_dict()
     (out / "calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
     files["calibration"] = str(out / "calibration.json")
     return outcome
@@ -253,10 +282,9 @@ def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float =
     return history, probes, truth
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Command line (``python -m bridge.pipeline -h``)."""
-    parser = argparse.ArgumentParser(
-        prog="python -m bridge.pipeline",
+def _parser() -> argparse.ArgumentParser:
+    parser = ArgumentParser(
+        prog=PROG,
         description="Calibrate the TIV model on DEM results, predict, draw and report.",
     )
     parser.add_argument("--history", help="DEM history or relaxed_states.nc")
@@ -267,20 +295,26 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="calibrate on synthetic DEM-like results made by the TIV model",
     )
-    parser.add_argument("--noise", type=float, default=0.0, help="noise of --synthetic data")
+    parser.add_argument(
+        "--noise", type=_non_negative, default=0.0, help="noise of --synthetic data (0)"
+    )
     parser.add_argument(
         "--stress-scale",
-        type=float,
+        type=positive_float,
         default=None,
         help="kPa per DEM stress unit (default: the history's attribute)",
     )
     parser.add_argument("--convention", default="triaxial", choices=("triaxial", "plane"))
-    parser.add_argument("--fabric-scale", type=float, default=1.0)
+    parser.add_argument(
+        "--fabric-scale", type=positive_float, default=1.0, help="F of the convention (1)"
+    )
     parser.add_argument("--probe-method", default="linear", choices=("linear", "dynamic"))
     parser.add_argument("--anisotropy", default="A", choices=("A", "B"))
     parser.add_argument("--no-constraint-forces", action="store_true")
     parser.add_argument("--bound-law", default="exponential", choices=tuple(BOUND_LAWS))
-    parser.add_argument("--reference-pressure", type=float, default=100.0, help="p_r (kPa)")
+    parser.add_argument(
+        "--reference-pressure", type=positive_float, default=100.0, help="p_r (kPa, 100)"
+    )
     parser.add_argument("--fix", nargs="*", default=[], help="symbols held at Table 1 values")
     parser.add_argument("--fix-M", action="store_true", help="do not fit M (Table 1 value)")
     parser.add_argument("--omega-stage", default="elastic", choices=("elastic", "fabric"))
@@ -291,18 +325,67 @@ def main(argv: list[str] | None = None) -> int:
         help="model fabric at A: isotropic (zero) or the DEM's",
     )
     parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
-    parser.add_argument("--passes", type=int, default=12, help="most cycles of coupled stages")
-    parser.add_argument("--max-k0-increments", type=int, default=12)
+    parser.add_argument(
+        "--passes", type=int_in_range(1, 1000), default=12, help="most cycles of coupled stages"
+    )
+    parser.add_argument(
+        "--max-k0-increments",
+        type=int_in_range(1, 10_000),
+        default=12,
+        help="most model increments per K0 fit run (12)",
+    )
     parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
     parser.add_argument("--no-figures", action="store_true")
+    parser.add_argument(
+        "--no-identifiability", action="store_true", help="skip the profile likelihoods"
+    )
     parser.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
+    add_common_flags(parser)
+    return parser
+
+
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"{text} is not allowed: give a finite number >= 0")
+    return value
+
+
+def _check_files(args: argparse.Namespace) -> None:
+    """The input files exist and are files; --out is not a file; --fix names known symbols."""
+    for option, name in (("--history", args.history), ("--probes", args.probes)):
+        if name is None:
+            continue
+        path = Path(name)
+        if not path.exists():
+            raise UsageError(f"{option} {path}: no such file; give a DEM history or probes file")
+        if not path.is_file():
+            raise UsageError(f"{option} {path} is a folder: give the netCDF file inside it")
+    if Path(args.out).exists() and not Path(args.out).is_dir():
+        raise UsageError(f"--out {args.out} is a file: give a folder for the results")
+    unknown = sorted(set(args.fix) - set(SYMBOLS.values()))
+    if unknown:
+        raise UsageError(
+            f"--fix {' '.join(unknown)}: unknown symbol(s); allowed: {', '.join(SYMBOLS.values())}"
+        )
+
+
+def _run(argv: list[str]) -> int:
+    parser = _parser()
     args = parser.parse_args(argv)
     stress_scale = args.stress_scale
     if args.synthetic:
+        if args.history or args.probes:
+            raise UsageError("--synthetic makes its own inputs: leave out --history and --probes")
+        _check_files(args)
         history, probes, truth = synthetic_inputs(args.out, noise=args.noise)
     else:
         if not args.history:
             parser.error("--history is required (or --synthetic)")
+        _check_files(args)
         history, probes, truth = args.history, args.probes, None
     model_options = ModelOptions(
         anisotropy=args.anisotropy,
@@ -329,8 +412,11 @@ def main(argv: list[str] | None = None) -> int:
         k0_mode=args.k0_mode,
         figures=not args.no_figures,
         stages=tuple(args.stages),
+        identifiability=not args.no_identifiability,
     )
     outcome = calibrate_from_results(history, probes, args.out, options)
+    if args.quiet:
+        return 0
     print(Path(outcome["files"]["calibration_text"]).read_text())
     if truth is not None:
         print("synthetic truth vs calibrated:")
@@ -338,6 +424,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"    {sym:<12} {value:<10.5g} {outcome['parameters'][sym]:.6g}")
     print(f"report: {outcome['files']['report']} ({outcome['seconds']:.1f} s)")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m bridge.pipeline``; returns the exit code (one error handler,
+    :mod:`tiv_model.command_line`: bad input is one line with exit code 2; a calibration that
+    cannot run, :class:`CalibrationError`, exit code 1; ``--debug`` shows the traceback)."""
+    return run_command(PROG, _run, argv, failures={CalibrationError: 1})
 
 
 if __name__ == "__main__":

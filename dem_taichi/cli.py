@@ -22,6 +22,12 @@ strain-controlled isotropic compression at ``[control] compression_strain_rate``
 SIGINT (Ctrl-C) or SIGTERM stops the run at the next output step: a checkpoint is written, the
 history closed, and one line says how to resume; the exit code is 128 + the signal (130 for
 SIGINT). The resumed run continues bit for bit.
+
+Errors (:mod:`tiv_model.command_line`, the project's one handler): a bad option, scene, file or
+directory is one line ``python -m dem_taichi: error: ...`` with exit code 2 (``--debug`` shows
+the traceback); a blow-up or a capacity the engine cannot grow, exit code 3. Checked before the
+engine starts: ``--steps`` >= 0, the run directory (above), and that the built-in compression
+has something to do (``[control] target_specific_volume`` below the gas's 1/initial_area_fraction).
 """
 
 from __future__ import annotations
@@ -32,9 +38,20 @@ import signal
 import sys
 from pathlib import Path
 
-from dem_taichi.config import Scene, SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi import __version__
+from dem_taichi.config import Scene, load_scene, scene_from_toml, scene_to_toml
+from tiv_model.command_line import (
+    ArgumentParser,
+    UsageError,
+    add_common_flags,
+    error_line,
+    int_in_range,
+    run_command,
+)
 
 __all__ = ["main", "builtin_schedule"]
+
+PROG = "python -m dem_taichi"
 
 
 def builtin_schedule(scene: Scene) -> list[tuple[str, int, float]]:
@@ -93,10 +110,19 @@ def _run(args: argparse.Namespace) -> int:
     from dem_taichi.io import resume_run, start_run
 
     if args.resume and args.overwrite:
-        raise ValueError("--resume and --overwrite exclude each other: give one of them")
-    if args.steps is not None and args.steps < 0:
-        raise ValueError(f"--steps {args.steps}: allowed values are integers >= 0")
+        raise UsageError(
+            "--resume and --overwrite exclude each other: --resume continues the run in --out, "
+            "--overwrite replaces it; give one of them"
+        )
     scene = load_scene(args.scene)
+    v0 = 1.0 / scene.particles.initial_area_fraction
+    if scene.control.target_specific_volume >= v0:
+        raise UsageError(
+            f"[control] target_specific_volume = {scene.control.target_specific_volume:g} is not "
+            f"below the gas's specific volume 1/initial_area_fraction = {v0:.4g}: the built-in "
+            "run would not compress; lower target_specific_volume or raise "
+            "[particles] initial_area_fraction"
+        )
     scene_toml = scene_to_toml(scene)
     out = Path(args.out)
     if args.resume:
@@ -119,7 +145,8 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
     checkpoints = run_dir.checkpoint_dir
     if latest is not None:
         sim = Simulation.from_checkpoint(latest, arch=args.arch, precision=args.precision)
-        print(f"resuming from {latest} at step {sim.step}")
+        if not args.quiet:
+            print(f"resuming from {latest} at step {sim.step}")
     else:
         sim = Simulation(
             scene, arch=args.arch, precision=args.precision, deterministic=args.deterministic
@@ -157,21 +184,21 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
         if not resume:
             history.append(sim.measure())
         start = 0
+        bars = args.progress and not args.quiet and total >= 20_000
         try:
             for stage, n_steps, rate in schedule:
                 stage_end = min(start + n_steps, total)
+                bar = _stage_bar(stage, start, stage_end, sim.step) if bars else None
                 while sim.step < stage_end and stop.received is None:
                     # run to the next output / checkpoint boundary (absolute step numbers)
                     target = min(stage_end, (sim.step // every + 1) * every)
                     if checkpoint_every:
                         target = min(target, (sim.step // checkpoint_every + 1) * checkpoint_every)
                     control = CellControl.strain_rate(rate, stage=stage)
-                    sim.run(
-                        target - sim.step,
-                        control=control,
-                        output_every=10**12,
-                        progress=args.progress and total >= 20_000,
-                    )
+                    n = target - sim.step
+                    sim.run(n, control=control, output_every=10**12)
+                    if bar is not None:
+                        bar.update(n)
                     if sim.step % every == 0 or sim.step == stage_end:
                         history.append(sim.measure())
                         last_record = sim.step
@@ -179,11 +206,13 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
                         run_dir.add_checkpoint(
                             sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
                         )
+                if bar is not None:
+                    bar.close()
                 start = start + n_steps
                 if start >= total or stop.received is not None:
                     break
         except BlowUpError as error:
-            print(f"error: {error}", file=sys.stderr)
+            print(error_line(PROG, error), file=sys.stderr)
             return 3
         if stop.received is not None and last_record != sim.step:
             history.append(sim.measure())
@@ -197,25 +226,45 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
             file=sys.stderr,
         )
         return 128 + stop.received
-    m = sim.measure()
-    print(
-        f"done: step {sim.step}, v = {m['specific_volume']:.4g}, p = {m['mean_stress']:.4g}, "
-        f"Z = {m['coordination_number']:.3g}; history in {out / 'history.nc'}"
-    )
+    if not args.quiet:
+        m = sim.measure()
+        print(
+            f"done: step {sim.step}, v = {m['specific_volume']:.4g}, p = {m['mean_stress']:.4g}, "
+            f"Z = {m['coordination_number']:.3g}; history in {out / 'history.nc'}"
+        )
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m dem_taichi", description=__doc__.split("\n")[0]
-    )
+def _stage_bar(stage: str, start: int, end: int, step: int):
+    """One progress bar per stage (steps, with the estimated time left)."""
+    from tqdm import tqdm
+
+    done = min(max(step - start, 0), end - start)
+    return tqdm(total=end - start, initial=done, unit="step", desc=stage, smoothing=0.1)
+
+
+def _parser() -> ArgumentParser:
+    parser = ArgumentParser(prog=PROG, description=__doc__.split("\n")[0])
+    parser.add_argument("--version", action="version", version=f"dem_taichi {__version__}")
+    add_common_flags(parser)
     sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run a scene (gas -> isotropic compression -> relax)")
+    run = sub.add_parser(
+        "run",
+        help="run a scene (gas -> isotropic compression -> relax)",
+        description="Run a scene's built-in loading: gas -> isotropic compression -> relax.",
+    )
     run.add_argument("scene", help="scene TOML path or built-in name (smoke, demo, default, paper)")
-    run.add_argument("--out", required=True, help="output directory")
-    run.add_argument("--arch", choices=("cpu", "gpu"), default="cpu")
-    run.add_argument("--precision", choices=("f64", "f32"), default="f64")
-    run.add_argument("--steps", type=int, default=None, help="stop after this many steps in all")
+    run.add_argument("--out", required=True, help="output directory (one run per directory)")
+    run.add_argument("--arch", choices=("cpu", "gpu"), default="cpu", help="device (cpu)")
+    run.add_argument(
+        "--precision", choices=("f64", "f32"), default="f64", help="floating point (f64)"
+    )
+    run.add_argument(
+        "--steps",
+        type=int_in_range(0),
+        default=None,
+        help="stop after this many steps in all (default: the whole schedule)",
+    )
     run.add_argument(
         "--resume",
         action="store_true",
@@ -227,43 +276,43 @@ def main(argv: list[str] | None = None) -> int:
         help="replace the run already in --out (else a used --out is refused)",
     )
     run.add_argument("--deterministic", action="store_true", help="bitwise reproducible (CPU)")
-    run.add_argument("--no-progress", dest="progress", action="store_false")
+    run.add_argument(
+        "--no-progress", dest="progress", action="store_false", help="no progress bars"
+    )
+    add_common_flags(run, sub=True)
     sub.add_parser(
         "protocol",
         add_help=False,
         help="the study's virtual experiments with probes, figures and a report "
         "(python -m dem_taichi protocol --help)",
     )
+    return parser
+
+
+def _command(argv: list[str]) -> int:
+    args = _parser().parse_args(argv)
+    return _run(args)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m dem_taichi run|protocol ...``; returns the exit code (module docstring)."""
+    from dem_taichi.failures import BlowUpError, CapacityError
+    from dem_taichi.io import CheckpointError
+
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv and argv[0] == "protocol":
-        return _protocol(argv[1:])
-    args = parser.parse_args(argv)
-    try:
-        return _run(args)
-    except SceneError as error:
-        print(f"scene error: {error}", file=sys.stderr)
-        return 2
-    except (ValueError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    # the common flags may come before the sub-command; `protocol` has its own parser
+    first = next((i for i, a in enumerate(argv) if a not in ("--quiet", "--debug")), len(argv))
+    if first < len(argv) and argv[first] == "protocol":
+        from dem_taichi.protocol import main as protocol_main
 
-
-def _protocol(argv: list[str]) -> int:
-    """Delegate to :func:`dem_taichi.protocol.main`; scene errors exit 2, blow-ups exit 3."""
-    from dem_taichi.engine import BlowUpError
-    from dem_taichi.protocol import main as protocol_main
-
-    try:
-        return protocol_main(argv)
-    except SceneError as error:
-        print(f"scene error: {error}", file=sys.stderr)
-        return 2
-    except BlowUpError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 3
-    except (ValueError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+        return protocol_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} protocol")
+    return run_command(
+        PROG,
+        _command,
+        argv,
+        user_errors=(CheckpointError,),
+        failures={BlowUpError: 3, CapacityError: 3},
+    )
 
 
 if __name__ == "__main__":  # pragma: no cover

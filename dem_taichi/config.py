@@ -481,13 +481,32 @@ def builtin_scene_path(name: str) -> Path:
 
 
 def load_scene(path_or_name: str | Path) -> Scene:
-    """Load a scene from a TOML path or a built-in scene name (smoke, demo, default, paper)."""
+    """Load a scene from a TOML path or a built-in scene name (smoke, demo, default, paper).
+
+    A scene *file* must state its sample: an empty file, or one without ``[particles]``, is
+    refused (it would otherwise run the defaults without a word); ``scene_from_dict`` and
+    ``scene_from_toml`` still fill every missing section with its defaults.
+    """
     path = Path(path_or_name)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         path = builtin_scene_path(str(path_or_name))
     if not path.exists():
-        raise SceneError(f"scene file {str(path)!r} does not exist")
-    return scene_from_toml(path.read_text())
+        raise SceneError(
+            f"scene file {str(path)!r} does not exist; give a TOML file or a built-in scene "
+            "(smoke, demo, default, paper)"
+        )
+    if not path.is_file():
+        raise SceneError(f"scene {str(path)!r} is a directory; give a scene TOML file")
+    text = path.read_text()
+    scene = scene_from_toml(text)
+    if "particles" not in tomllib.loads(text):
+        what = "is empty" if not text.strip() else "has no [particles] section"
+        raise SceneError(
+            f"scene file {str(path)!r} {what}: a scene states its sample ([particles] n_rods, "
+            "n_spheres, ...); add [particles], or start from a built-in scene "
+            "(dem_taichi/scenes/smoke.toml)"
+        )
+    return scene
 
 
 def _toml_value(value: Any) -> str:

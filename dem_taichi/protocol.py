@@ -126,8 +126,6 @@ def run_protocol(
     ``history.nc`` or ``checkpoints/``) unless ``overwrite``, which deletes that run's files
     first; the run's id and scene hash are written to ``out_dir/run.json``.
     """
-    import taichi as ti
-
     from dem_taichi.engine import Simulation
     from dem_taichi.io import (
         HistoryWriter,
@@ -162,6 +160,8 @@ def run_protocol(
         stress_scale_kpa=config.stress_scale_kpa,
         log=log,
     )
+    import taichi as ti  # after the checks above: a bad input is refused without waiting for it
+
     attrs = provenance_attrs(
         scene.source_text or scene_to_toml(scene),
         arch,
@@ -263,39 +263,42 @@ def _write_figures_and_report(result: ProtocolResult, sim) -> None:
     result.files["report"] = str(write_report(result))
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m dem_taichi.protocol SCENE --out DIR [--arch] [--precision] [--pattern]``."""
-    parser = argparse.ArgumentParser(
-        prog="python -m dem_taichi.protocol",
+def _parser(prog: str) -> argparse.ArgumentParser:
+    from tiv_model.command_line import ArgumentParser, add_common_flags, int_in_range
+
+    parser = ArgumentParser(
+        prog=prog,
         description="Run the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial) "
         "with elastic probes; write history, probes, configurations, figures and a report.",
     )
     parser.add_argument(
         "scene", help="scene TOML file or built-in name (smoke, demo, default, paper)"
     )
-    parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"))
-    parser.add_argument("--precision", default="f64", choices=("f64", "f32"))
+    parser.add_argument("--out", required=True, help="output directory (one run per directory)")
+    parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"), help="device (cpu)")
+    parser.add_argument(
+        "--precision", default="f64", choices=("f64", "f32"), help="floating point (f64)"
+    )
     parser.add_argument(
         "--pattern", default=None, choices=("acidic", "basic", "neutral"),
         help="charge pattern (overrides the scene's [long_range] pattern)",
     )  # fmt: skip
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    parser.add_argument(
+        "--workers", type=int_in_range(1), default=1,
+        help="processes for the paths from A (A-B, A-C-B', radial) run at once (default 1)",
+    )  # fmt: skip
     parser.add_argument(
         "--overwrite",
         action="store_true",
         help="replace the run already in --out (else a used --out is refused)",
     )
-    parser.add_argument(
-        "--workers", type=int, default=1,
-        help="processes for the paths from A (A-B, A-C-B', radial) run at once (default 1)",
-    )  # fmt: skip
-    args = parser.parse_args(argv)
-    if args.workers < 1:
-        parser.error(f"--workers {args.workers}: allowed values are integers >= 1")
-    command = "python -m dem_taichi.protocol " + " ".join(
-        argv if argv is not None else sys.argv[1:]
-    )
+    add_common_flags(parser)
+    return parser
+
+
+def _main(argv: list[str], prog: str) -> int:
+    args = _parser(prog).parse_args(argv)
+    command = f"{prog} " + " ".join(argv)
     result = run_protocol(
         args.scene,
         args.out,
@@ -307,6 +310,8 @@ def main(argv: list[str] | None = None) -> int:
         workers=args.workers,
         overwrite=args.overwrite,
     )
+    if args.quiet:
+        return 0
     print(f"protocol done in {result.total_seconds:.1f} s; results in {result.out_dir}")
     for label, state in result.states.items():
         m = state.measures
@@ -315,6 +320,27 @@ def main(argv: list[str] | None = None) -> int:
             f"v={m['specific_volume']:.5f} fabric={m['fabric_deviator']:+.4f}"
         )
     return 0
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.protocol") -> int:
+    """``python -m dem_taichi.protocol SCENE --out DIR [--arch] [--precision] [--pattern]
+    [--workers] [--overwrite] [--quiet] [--debug]``; returns the exit code.
+
+    One error handler (:mod:`tiv_model.command_line`): bad input is one line with exit code 2,
+    a stage that cannot reach its goal (:class:`ProtocolError`) exit code 1, a blow-up exit
+    code 3, Ctrl-C exit code 130 (the files written so far are closed).
+    """
+    from dem_taichi.failures import BlowUpError, CapacityError
+    from dem_taichi.io import CheckpointError
+    from tiv_model.command_line import run_command
+
+    return run_command(
+        prog,
+        lambda args: _main(args, prog),
+        argv,
+        user_errors=(CheckpointError,),
+        failures={BlowUpError: 3, CapacityError: 3, ProtocolError: 1},
+    )
 
 
 if __name__ == "__main__":

@@ -1,0 +1,164 @@
+"""The conventions of the project's command lines: one error handler, the same flags.
+
+Used by ``python -m tiv_model``, ``python -m dem_taichi`` (``run``, ``protocol``) and
+``python -m bridge.pipeline``. Standard library only; it lives in the lowest layer
+(``tiv_model`` imports no other package of the project) so that all three share it.
+
+- A user error (a bad option, a bad scene or file, a value out of range: ``ValueError`` and
+  ``OSError`` and what an entry point adds) is one line on stderr, ``PROG: error: MESSAGE``,
+  saying what is wrong, what is allowed and what to do, with exit code 2. Option errors of
+  argparse are one line too (:class:`ArgumentParser`).
+- Any other exception is one line ``PROG: internal error: ...`` with exit code 1.
+- ``--debug`` (anywhere on the command line) shows the full traceback instead.
+- ``--quiet``: no progress bars or summary lines (results asked for are still printed).
+- Ctrl-C that the command does not handle itself: ``PROG: interrupted``, exit code 130.
+
+Exit codes: 0 done; 1 stopped early or failed (a model error, an internal error); 2 bad input;
+3 a DEM blow-up; 128 + N stopped by signal N (130: SIGINT, 143: SIGTERM).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Mapping, Sequence
+
+__all__ = [
+    "EXIT_OK",
+    "EXIT_FAILED",
+    "EXIT_USAGE",
+    "EXIT_INTERRUPTED",
+    "UsageError",
+    "ArgumentParser",
+    "add_common_flags",
+    "error_line",
+    "run_command",
+    "int_in_range",
+    "positive_float",
+]
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+class UsageError(ValueError):
+    """A bad input found by a command line's own checks (exit code 2)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse with a one-line error (``PROG: error: MESSAGE (see PROG --help)``), exit 2.
+
+    Sub-command parsers made by ``add_subparsers`` are of the same class.
+    """
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def add_common_flags(parser: argparse.ArgumentParser, sub: bool = False) -> None:
+    """``--quiet`` and ``--debug``. On sub-command parsers (``sub``) they do not reset a value
+    given before the sub-command."""
+    default = argparse.SUPPRESS if sub else False
+    parser.add_argument(
+        "--quiet", action="store_true", default=default, help="no progress bars or summary lines"
+    )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        default=default,
+        help="show the full traceback of an error (default: one line)",
+    )
+
+
+def _text(error: BaseException) -> str:
+    if isinstance(error, OSError) and error.filename is not None and error.strerror:
+        return f"{error.filename}: {error.strerror}"
+    text = str(error) or type(error).__name__
+    if isinstance(error, KeyError) and len(error.args) == 1:
+        text = str(error.args[0])
+    return " ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def error_line(prog: str, error: BaseException, kind: str = "error") -> str:
+    """``PROG: KIND: MESSAGE`` on one line (newlines of the message joined)."""
+    return f"{prog}: {kind}: {_text(error)}"
+
+
+def run_command(
+    prog: str,
+    body: Callable[[list[str]], int | None],
+    argv: Sequence[str] | None = None,
+    *,
+    user_errors: tuple[type[BaseException], ...] = (),
+    failures: Mapping[type[BaseException], int] | None = None,
+) -> int:
+    """Run ``body(argv)`` under the one error handler (module docstring); returns the exit code.
+
+    ``user_errors``: exception types reported as bad input (exit 2) besides ``ValueError``,
+    ``OSError`` and :class:`UsageError`; ``failures``: exception type → exit code for errors
+    that are not bad input (e.g. a DEM blow-up → 3), reported on one line as ``error``.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args
+    try:
+        code = body(args)
+        return EXIT_OK if code is None else int(code)
+    except SystemExit as stop:  # argparse: --help (0) and option errors (2, already printed)
+        if stop.code is None or isinstance(stop.code, int):
+            return stop.code or EXIT_OK
+        print(f"{prog}: error: {stop.code}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:  # noqa: BLE001 - the one handler of a command line
+        if debug:
+            raise
+        for kind, code in (failures or {}).items():
+            if isinstance(error, kind):
+                print(error_line(prog, error), file=sys.stderr)
+                return code
+        if isinstance(error, (ValueError, OSError, UsageError, *user_errors)):
+            print(error_line(prog, error), file=sys.stderr)
+            return EXIT_USAGE
+        print(
+            error_line(prog, error, "internal error")
+            + f" ({type(error).__name__}; rerun with --debug for the traceback and report it)",
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
+
+
+def int_in_range(low: int, high: int | None = None, note: str = "") -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [low, high]; the message names the allowed range and
+    ``note`` (e.g. the cost that sets the limit and how to go past it)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < low or (high is not None and value > high):
+            allowed = f">= {low}" if high is None else f"from {low} to {high:,}"
+            raise argparse.ArgumentTypeError(
+                f"{value:,} is out of range: allowed integers {allowed}{note}"
+            )
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def positive_float(text: str) -> float:
+    """An argparse ``type``: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"{text} is not allowed: give a finite number > 0")
+    return value
