@@ -25,7 +25,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
+
+from dem_taichi.findings import mean_interval
 
 KEYS = ("ratio_C", "ratio_Bp", "ratio_B", "fabric_part", "ev_C_rel", "ev_over_p_B", "exponent")
 LABELS = {
@@ -91,13 +92,7 @@ def run_findings(rows: list[dict]) -> dict[str, dict]:
 
 def interval(values) -> tuple[float, float, int]:
     """Mean, 95 % half-width (Student t) and count of the finite values."""
-    x = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
-    if x.size == 0:
-        return math.nan, math.nan, 0
-    if x.size == 1:
-        return float(x[0]), math.nan, 1
-    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
-    return float(x.mean()), float(half), int(x.size)
+    return mean_interval(values)
 
 
 def _pm(mean, half, n, digits=3):

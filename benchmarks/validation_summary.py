@@ -19,82 +19,15 @@ Moduli are the linear-response ones (the dynamic sweep runs only at some states 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-import numpy as np
-
-from dem_taichi.analysis import fabric_sampling_noise
-from dem_taichi.io import open_history, open_probes
-from dem_taichi.io.schema import stage_code
-from dem_taichi.report import compressibility_slope
+from dem_taichi.findings import run_findings
 
 HERE = Path(__file__).resolve().parent
 
-
-def _run_row(folder: Path) -> dict:
-    summary = json.loads((folder / "summary.json").read_text())
-    relaxed = open_history(folder / "relaxed_states.nc")
-    probes = open_probes(folder / "probes.nc")
-    stage = relaxed["stage"].values
-    iso = stage == stage_code("A_to_B")
-    k0 = stage == stage_code("A_to_C")
-    states = summary["states"]
-    n = int(summary["n_rods"])
-    fit = compressibility_slope(
-        np.r_[states["A"]["mean_stress"], relaxed["mean_stress"].values[iso]],
-        np.r_[states["A"]["specific_volume"], relaxed["specific_volume"].values[iso]],
-    )
-    path = probes["path"].values.astype(str)
-    labels = probes["state_label"].values.astype(str)
-    ratio = probes["e_oed_h_linear"].values / probes["e_oed_v_linear"].values
-    p = probes["mean_stress"].values
-    on_iso = (path == "A_to_B") | (labels == "A")
-    on_k0 = path == "A_to_C"
-    order = np.argsort(p[on_k0])
-    e_v = probes["e_oed_v_linear"].values
-    iso_p = p[on_iso & (p > 0)]
-    # moduli ∝ p^n along A→B: the slope of ln E_oed,v against ln p (the study: n ≈ 0.8)
-    exponent = (
-        float(np.polyfit(np.log(iso_p), np.log(e_v[on_iso & (p > 0)]), 1)[0])
-        if len(iso_p) > 1 else float("nan")
-    )  # fmt: skip
-    at_b = np.flatnonzero(labels == "B")
-    row = {
-        "run": folder.name,
-        "max_i": max(
-            st["max_inertial_number"]
-            for name, st in summary["stages"].items()
-            if name != "isotropic_to_A"
-        ),
-        "n_rods": n,
-        "noise": fabric_sampling_noise(n),
-        "iso_fabric_max": float(
-            np.max(np.abs(np.r_[states["A"]["fabric_deviator"], relaxed["fabric_deviator"][iso]]))
-        ),
-        "iso_ratio": [float(x) for x in ratio[on_iso]],
-        "k0_fabric": [float(x) for x in relaxed["fabric_deviator"].values[k0]],
-        "k0_p": [float(x) for x in p[on_k0][order]],
-        "k0_ratio": [float(x) for x in ratio[on_k0][order]],
-        "lambda_star": fit["lambda_star"],
-        "r2": fit["r2"],
-        "p_A": states["A"]["mean_stress"],
-        "v_A": states["A"]["specific_volume"],
-        "v_B": states["B"]["specific_volume"],
-        "v_C": states["C"]["specific_volume"],
-        "fabric_A": states["A"]["fabric_deviator"],
-        "fabric_C": states["C"]["fabric_deviator"],
-        "k0_C": states["C"]["stress_xx"] / states["C"]["stress_yy"],
-        "modulus_exponent": exponent,
-        "ev_over_p_B": float(e_v[at_b[-1]] / p[at_b[-1]]) if at_b.size else float("nan"),
-        "seconds": summary["total_seconds"],
-        "workers": summary.get("workers", 1),
-    }
-    aniso = folder / "anisotropy.json"
-    if aniso.exists():
-        rows = {r["state"]: r for r in json.loads(aniso.read_text())}
-        row["anisotropy_C"] = rows.get("C")
-    return row
+# the findings of one run are computed in dem_taichi.findings (shared with the sweeps' replica
+# statistics, dem_taichi.sweep_results); the old name stays for the callers of this script
+_run_row = run_findings
 
 
 def _f(x: float, digits: int = 3) -> str:

@@ -1,0 +1,181 @@
+"""The study's findings read from a finished protocol run, and their replica statistics.
+
+numpy/scipy/xarray only (no Taichi): reads ``summary.json``, ``relaxed_states.nc`` and
+``probes.nc`` of a run directory (:func:`dem_taichi.protocol.run_protocol`). Used by
+``benchmarks/validation_summary.py`` (runs side by side) and by the sweeps
+(:mod:`dem_taichi.sweep_results`: mean ± 95 % interval over replicas).
+
+Findings (model.md §1, the study): fabric isotropic along A→B within the sampling noise
+sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
+E_oed,h/E_oed,v > 1, growing; ln v linear in ln p beyond A (slope −λ*); K0 = σ_xx/σ_yy at C;
+the moduli ∝ p^n along A→B (the study: n ≈ 0.8) and E_v/p at B (≈ 125). Moduli are the
+linear-response ones. A run without some path or without probes gives NaN for what it lacks.
+
+Symbols: p = (σ_xx + σ_yy)/2, q = σ_yy − σ_xx (DEM units), v specific volume, β_yy − β_xx rod
+fabric deviator, E_oed,v = ∂σ_yy/∂ε_yy and E_oed,h = ∂σ_xx/∂ε_xx (constrained moduli), λ*.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from dem_taichi.analysis import fabric_sampling_noise
+from dem_taichi.io import open_history, open_probes
+from dem_taichi.io.schema import stage_code
+from dem_taichi.report import compressibility_slope
+
+__all__ = [
+    "STATE_MEASURES",
+    "run_findings",
+    "state_findings",
+    "mean_interval",
+]
+
+#: Measures of a labelled state taken from ``summary.json`` (history names).
+STATE_MEASURES = (
+    "mean_stress",
+    "deviatoric_stress",
+    "stress_xx",
+    "stress_yy",
+    "specific_volume",
+    "fabric_deviator",
+    "mechanical_coordination_number",
+)
+
+_NAN = float("nan")
+
+
+def _state(states: dict, label: str, key: str) -> float:
+    return float(states[label][key]) if label in states else _NAN
+
+
+def _probes(folder: Path):
+    path = folder / "probes.nc"
+    return open_probes(path) if path.exists() else None
+
+
+def run_findings(folder: str | Path) -> dict:
+    """The findings of one run directory as a flat dict (one row of the validation summary).
+
+    Keys: ``run`` (the folder's name), ``max_i`` (largest inertial number on the paths from A),
+    ``n_rods``, ``noise`` (sqrt(0.5/N)), ``iso_fabric_max`` (max |β_yy − β_xx| on A→B),
+    ``iso_ratio`` / ``k0_ratio`` (E_h/E_v of the probes along A→B / along K0 by rising p),
+    ``k0_fabric``, ``k0_p``, ``lambda_star`` and ``r2`` (ln v – ln p fit over A and A→B),
+    ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``, ``fabric_C``, ``k0_C`` (σ_xx/σ_yy at C),
+    ``modulus_exponent`` (n of E_v ∝ p^n on A→B), ``ev_over_p_B``, ``seconds``, ``workers``;
+    ``anisotropy_C`` when the folder holds ``anisotropy.json``.
+    """
+    folder = Path(folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    relaxed = open_history(folder / "relaxed_states.nc")
+    probes = _probes(folder)
+    stage = relaxed["stage"].values
+    iso = stage == stage_code("A_to_B")
+    k0 = stage == stage_code("A_to_C")
+    states = summary["states"]
+    n = int(summary["n_rods"])
+    fit = compressibility_slope(
+        np.r_[_state(states, "A", "mean_stress"), relaxed["mean_stress"].values[iso]],
+        np.r_[_state(states, "A", "specific_volume"), relaxed["specific_volume"].values[iso]],
+    )
+    if probes is not None and probes.sizes.get("probe", 0):
+        path = probes["path"].values.astype(str)
+        labels = probes["state_label"].values.astype(str)
+        ratio = probes["e_oed_h_linear"].values / probes["e_oed_v_linear"].values
+        p = probes["mean_stress"].values
+        e_v = probes["e_oed_v_linear"].values
+    else:
+        path = labels = np.array([], dtype=str)
+        ratio = p = e_v = np.array([], dtype=float)
+    on_iso = (path == "A_to_B") | (labels == "A")
+    on_k0 = path == "A_to_C"
+    order = np.argsort(p[on_k0])
+    iso_p = p[on_iso & (p > 0)]
+    # moduli ∝ p^n along A→B: the slope of ln E_oed,v against ln p (the study: n ≈ 0.8)
+    exponent = (
+        float(np.polyfit(np.log(iso_p), np.log(e_v[on_iso & (p > 0)]), 1)[0])
+        if len(iso_p) > 1 else _NAN
+    )  # fmt: skip
+    at_b = np.flatnonzero(labels == "B")
+    loading = [
+        st["max_inertial_number"]
+        for name, st in summary["stages"].items()
+        if name != "isotropic_to_A"
+    ]
+    row = {
+        "run": folder.name,
+        "max_i": max(loading) if loading else _NAN,
+        "n_rods": n,
+        "noise": fabric_sampling_noise(n),
+        "iso_fabric_max": float(
+            np.max(
+                np.abs(
+                    np.r_[_state(states, "A", "fabric_deviator"), relaxed["fabric_deviator"][iso]]
+                )
+            )
+        ),
+        "iso_ratio": [float(x) for x in ratio[on_iso]],
+        "k0_fabric": [float(x) for x in relaxed["fabric_deviator"].values[k0]],
+        "k0_p": [float(x) for x in p[on_k0][order]],
+        "k0_ratio": [float(x) for x in ratio[on_k0][order]],
+        "lambda_star": fit["lambda_star"],
+        "r2": fit["r2"],
+        "p_A": _state(states, "A", "mean_stress"),
+        "v_A": _state(states, "A", "specific_volume"),
+        "v_B": _state(states, "B", "specific_volume"),
+        "v_C": _state(states, "C", "specific_volume"),
+        "fabric_A": _state(states, "A", "fabric_deviator"),
+        "fabric_C": _state(states, "C", "fabric_deviator"),
+        "k0_C": _state(states, "C", "stress_xx") / _state(states, "C", "stress_yy"),
+        "modulus_exponent": exponent,
+        "ev_over_p_B": float(e_v[at_b[-1]] / p[at_b[-1]]) if at_b.size else _NAN,
+        "seconds": summary["total_seconds"],
+        "workers": summary.get("workers", 1),
+    }
+    aniso = folder / "anisotropy.json"
+    if aniso.exists():
+        rows = {r["state"]: r for r in json.loads(aniso.read_text())}
+        row["anisotropy_C"] = rows.get("C")
+    return row
+
+
+def state_findings(folder: str | Path) -> dict[str, dict[str, float]]:
+    """Per labelled state of a run (A, B, C, B', R<k>_end, in the order reached): the measures
+    of :data:`STATE_MEASURES` and the linear-response moduli ``e_oed_v``, ``e_oed_h`` and their
+    ratio ``e_ratio`` = E_oed,h/E_oed,v (NaN where the state was not probed)."""
+    folder = Path(folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    probes = _probes(folder)
+    moduli: dict[str, tuple[float, float]] = {}
+    if probes is not None and probes.sizes.get("probe", 0):
+        labels = probes["state_label"].values.astype(str)
+        for i, label in enumerate(labels):
+            if label:
+                moduli[label] = (
+                    float(probes["e_oed_v_linear"].values[i]),
+                    float(probes["e_oed_h_linear"].values[i]),
+                )
+    out: dict[str, dict[str, float]] = {}
+    for label, measures in summary["states"].items():
+        entry = {k: float(measures.get(k, _NAN)) for k in STATE_MEASURES}
+        e_v, e_h = moduli.get(label, (_NAN, _NAN))
+        entry.update(e_oed_v=e_v, e_oed_h=e_h, e_ratio=e_h / e_v if e_v else _NAN)
+        out[label] = entry
+    return out
+
+
+def mean_interval(values, confidence: float = 0.95) -> tuple[float, float, int]:
+    """Mean, half-width of the ``confidence`` interval of the mean (Student t, n − 1 degrees of
+    freedom: t · s/√n) and count of the finite values; half-width NaN below two values."""
+    x = np.asarray([v for v in np.ravel(values) if np.isfinite(v)], dtype=float)
+    if x.size == 0:
+        return _NAN, _NAN, 0
+    if x.size == 1:
+        return float(x[0]), _NAN, 1
+    t = stats.t.ppf(0.5 + confidence / 2.0, x.size - 1)
+    return float(x.mean()), float(t * x.std(ddof=1) / math.sqrt(x.size)), int(x.size)

@@ -1,0 +1,390 @@
+"""Sweeps: many protocol runs over scene keys on Dask, one run directory per member.
+
+::
+
+    python -m dem_taichi.sweep SWEEP.toml --out DIR [--scheduler ADDRESS] [--n-workers N]
+    python -m dem_taichi.sweep summarise DIR [--over scene.seed] [--out FILE.md]
+
+The sweep file (:mod:`dem_taichi.sweep_spec`) gives a base scene and a grid and/or a list of
+members; each member is a whole :func:`dem_taichi.protocol.run_protocol` in ``DIR/members/<name>``.
+Members run as Dask tasks (``dask.distributed``): by default on a ``LocalCluster`` of one
+process per core (÷ the sweep's ``workers``, the processes each member uses for its paths from
+A), one thread each; ``--scheduler`` runs them on an existing cluster instead, whose workers must
+have this package installed and see ``DIR`` at the same path. Taichi is initialised in each
+worker process by the first member it runs (:mod:`dem_taichi.runtime`); the Nanny *spawns* the
+worker processes (never forks), and a process runs one member at a time (a lock, for workers
+with several threads).
+
+What a sweep writes in ``DIR``:
+
+- ``sweep.toml`` (the sweep file as given) and ``sweep.json`` (the members, their keys and
+  scene hashes);
+- ``members/<name>/``: the member's protocol run (``run.json``, ``history.nc``, ``summary.json``,
+  ...), ``member.json`` (status ``running`` | ``done`` | ``failed``, the error and its traceback,
+  wall time, worker) and ``progress.log`` (the protocol's progress lines);
+- ``index.json`` and ``index.csv``: one row per member (name, status, seconds, error, keys).
+
+A failed member (an exception in its protocol, or its worker process dying) is recorded with
+its error and does not stop the others; the exit code is then 1. A re-run of the same sweep
+skips the members that are done (same scene hash) and runs the others again: the protocol has
+no resume from checkpoints (its paths keep servo and probe state in memory), so an unfinished
+or failed member is run again from scratch. A member done with another scene than the sweep
+file now gives it is refused unless ``--overwrite``. ``summarise`` and
+:func:`dem_taichi.sweep_results.open_sweep` read the finished members
+(:mod:`dem_taichi.sweep_results`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import os
+import sys
+import tempfile
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dem_taichi.sweep_member import (
+    MEMBER_RECORD,
+    TOPIC,
+    member_dir,
+    now,
+    read_json,
+    run_member,
+    write_json,
+)
+from dem_taichi.sweep_spec import Member, SweepError, SweepSpec, load_sweep
+
+INDEX_JSON = "index.json"
+INDEX_CSV = "index.csv"
+
+__all__ = ["MEMBER_RECORD", "SweepOutcome", "run_sweep", "run_member", "read_index", "main"]
+
+
+# -- on the client ------------------------------------------------------------------------------
+@dataclass
+class SweepOutcome:
+    """What a sweep did: every member's index row, and which ran this time."""
+
+    out_dir: Path
+    rows: list[dict]
+    ran: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def failed(self) -> list[str]:
+        return [r["name"] for r in self.rows if r["status"] == "failed"]
+
+    @property
+    def done(self) -> list[str]:
+        return [r["name"] for r in self.rows if r["status"] == "done"]
+
+
+def _index_row(spec: SweepSpec, member: Member, out: Path) -> dict:
+    record = read_json(member_dir(out, member.name) / MEMBER_RECORD) or {}
+    status = record.get("status", "pending")
+    if status == "done" and record.get("scene_sha256") != member.scene_sha256:
+        status = "stale"  # done with another scene than the sweep file now gives it
+    return {
+        "name": member.name,
+        "status": status,
+        "seconds": record.get("seconds"),
+        "error": record.get("error", ""),
+        "finished": record.get("finished", ""),
+        "worker": record.get("worker", ""),
+        "run_dir": str(Path("members") / member.name),
+        "scene_sha256": member.scene_sha256,
+        "parameters": member.parameters,
+    }
+
+
+def write_index(spec: SweepSpec, out: Path) -> list[dict]:
+    """Write ``index.json`` and ``index.csv`` from the members' records; returns the rows."""
+    rows = [_index_row(spec, m, out) for m in spec.members]
+    write_json(
+        out / INDEX_JSON,
+        {"sweep": spec.name, "scene": spec.scene, "updated": now(), "members": rows},
+    )
+    keys = spec.parameter_keys
+    fd, tmp = tempfile.mkstemp(dir=out, prefix=f".{INDEX_CSV}.", suffix=".tmp")
+    with os.fdopen(fd, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(["name", "status", "seconds", "error", *keys, "run_dir"])
+        for r in rows:
+            seconds = "" if r["seconds"] is None else f"{r['seconds']:.2f}"
+            values = [r["parameters"].get(k, "") for k in keys]
+            writer.writerow([r["name"], r["status"], seconds, r["error"], *values, r["run_dir"]])
+    os.replace(tmp, out / INDEX_CSV)
+    return rows
+
+
+def read_index(out: str | Path) -> dict:
+    """``DIR/index.json`` of a sweep: ``{"sweep", "scene", "updated", "members": [rows]}``."""
+    path = Path(out) / INDEX_JSON
+    data = read_json(path)
+    if data is None:
+        raise SweepError(f"{path} does not exist or is not readable: not a sweep directory")
+    return data
+
+
+def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], list[str], dict]:
+    """Members to run, members done, and why each one to run runs (for the progress lines)."""
+    to_run, done, why = [], [], {}
+    stale = []
+    for m in spec.members:
+        folder = member_dir(out, m.name)
+        record = read_json(folder / MEMBER_RECORD)
+        status = None if record is None else record.get("status")
+        if status == "done" and (folder / "summary.json").exists():
+            if record.get("scene_sha256") == m.scene_sha256:
+                done.append(m.name)
+                continue
+            if not overwrite:
+                stale.append(m.name)
+                continue
+            why[m.name] = "done with another scene; --overwrite: running it again"
+            write_json(folder / MEMBER_RECORD, dict(record, status="stale"))
+        elif record is None and folder.exists() and any(folder.iterdir()):
+            raise SweepError(
+                f"{folder} holds files not written by a sweep: move them or use a new --out"
+            )
+        elif status == "failed":
+            why[m.name] = f"failed before ({record.get('error', '?')}); running it again"
+        elif status is not None:
+            why[m.name] = (
+                "unfinished; the protocol has no resume from checkpoints: running it again "
+                "from scratch"
+            )
+        to_run.append(m)
+    if stale:
+        raise SweepError(
+            f"member(s) {', '.join(stale)} in {out} were run with another scene than the sweep "
+            "file now gives them: use a new --out, or --overwrite to run them again"
+        )
+    return to_run, done, why
+
+
+def _cluster(scheduler: str | None, n_workers: int | None, spec: SweepSpec, n_tasks: int):
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler), None, f"scheduler {scheduler}"
+    if n_workers is None:
+        n_workers = max(1, (os.cpu_count() or 1) // spec.workers)
+    n_workers = max(1, min(n_workers, n_tasks))
+    with dask.config.set(
+        {
+            "distributed.worker.multiprocessing-method": "spawn",  # never fork Taichi
+            "distributed.worker.daemon": False,  # a member may spawn its branch processes
+            "distributed.scheduler.allowed-failures": 1,  # a crashing member: one retry
+        }
+    ):
+        cluster = LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,  # errors only: the sweep prints its own progress
+        )
+    return Client(cluster), cluster, f"LocalCluster ({n_workers} process{'es' if n_workers > 1 else ''} × 1 thread)"
+
+
+def run_sweep(
+    spec: SweepSpec,
+    out_dir: str | Path,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    overwrite: bool = False,
+    verbose: bool = False,
+    say=print,
+    command: str = "dem_taichi.sweep.run_sweep",
+) -> SweepOutcome:
+    """Run the members of ``spec`` that are not done into ``out_dir`` (see the module
+    docstring); returns the outcome with every member's index row. ``say`` prints a progress
+    line (``print`` by default); ``verbose`` also forwards each member's protocol lines."""
+    from distributed import as_completed
+
+    start = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    to_run, done, why = _plan(spec, out, overwrite)
+    (out / "sweep.toml").write_text(spec.source_text)
+    write_json(
+        out / "sweep.json",
+        {
+            "sweep": spec.name,
+            "scene": spec.scene,
+            "arch": spec.arch,
+            "precision": spec.precision,
+            "workers": spec.workers,
+            "members": [
+                {"name": m.name, "parameters": m.parameters, "overrides": m.overrides,
+                 "scene_sha256": m.scene_sha256}
+                for m in spec.members
+            ],
+        },
+    )  # fmt: skip
+    write_index(spec, out)
+    outcome = SweepOutcome(out, [], ran=[m.name for m in to_run], skipped=done)
+    say(
+        f"sweep {spec.name}: {len(spec.members)} members, {len(done)} done before"
+        f"{' (skipped)' if done else ''}, {len(to_run)} to run"
+    )
+    for name, reason in why.items():
+        say(f"  {name}: {reason}")
+    if not to_run:
+        outcome.rows = write_index(spec, out)
+        return outcome
+
+    def stamp() -> str:
+        return f"[{time.perf_counter() - start:7.1f} s]"
+
+    def on_event(event) -> None:
+        msg = event[1] if isinstance(event, tuple) else event
+        if not isinstance(msg, dict):
+            return
+        if msg.get("kind") == "started":
+            say(f"{stamp()} {msg['member']}: started ({msg.get('text', '')})")
+        elif msg.get("kind") == "line" and verbose:
+            say(f"{stamp()}   {msg['member']}: {msg.get('text', '')}")
+
+    client, cluster, where = _cluster(scheduler, n_workers, spec, len(to_run))
+    try:
+        say(f"{stamp()} running on {where}")
+        with contextlib.suppress(Exception):
+            client.subscribe_topic(TOPIC, on_event)
+        futures = {}
+        for m in to_run:
+            folder = member_dir(out, m.name).resolve()
+            future = client.submit(
+                run_member,
+                m.name,
+                m.scene_toml,
+                str(folder),
+                spec.arch,
+                spec.precision,
+                spec.workers,
+                f"{command} (member {m.name})",
+                key=f"sweep-member-{m.name}-{os.urandom(4).hex()}",
+                pure=False,
+            )
+            futures[future] = m
+        finished = 0
+        for future in as_completed(futures):
+            m = futures[future]
+            finished += 1
+            try:
+                record = future.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died or the task was lost
+                record = {
+                    "name": m.name,
+                    "status": "failed",
+                    "error": f"{type(exc).__name__}: {exc}".splitlines()[0],
+                    "traceback": "".join(traceback.format_exception(exc)),
+                    "scene_sha256": m.scene_sha256,
+                    "finished": now(),
+                }
+                write_json(member_dir(out, m.name) / MEMBER_RECORD, record)
+            write_index(spec, out)
+            count = f"({finished}/{len(to_run)})"
+            if record["status"] == "done":
+                say(f"{stamp()} {m.name}: done in {record['seconds']:.1f} s {count}")
+            else:
+                say(f"{stamp()} {m.name}: FAILED: {record['error']} {count}")
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    outcome.rows = write_index(spec, out)
+    outcome.seconds = time.perf_counter() - start
+    failed = outcome.failed
+    say(
+        f"sweep {spec.name}: {len(outcome.done)} done, {len(failed)} failed"
+        f"{' (' + ', '.join(failed) + ')' if failed else ''} in {outcome.seconds:.1f} s; "
+        f"index {out / INDEX_JSON}"
+    )
+    return outcome
+
+
+# -- command line -------------------------------------------------------------------------------
+def _run_command(args) -> int:
+    spec = load_sweep(args.sweep)
+    command = "python -m dem_taichi.sweep " + " ".join(args.argv)
+    outcome = run_sweep(
+        spec,
+        args.out,
+        scheduler=args.scheduler,
+        n_workers=args.n_workers,
+        overwrite=args.overwrite,
+        verbose=args.verbose,
+        command=command,
+    )
+    return 1 if outcome.failed else 0
+
+
+def _summarise_command(args) -> int:
+    from dem_taichi.sweep_results import summarise_sweep
+
+    files = summarise_sweep(args.dir, over=tuple(args.over), out=args.out)
+    print(Path(files["table"]).read_text())
+    for kind, path in files.items():
+        print(f"{kind}: {path}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m dem_taichi.sweep [run] SWEEP.toml --out DIR`` | ``summarise DIR``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] not in ("run", "summarise", "summarize", "-h", "--help"):
+        argv = ["run", *argv]
+    parser = argparse.ArgumentParser(
+        prog="python -m dem_taichi.sweep",
+        description="Protocol runs over scene keys on Dask, and their replica statistics.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a sweep (the default: `SWEEP.toml --out DIR`)")
+    run.add_argument("sweep", help="sweep TOML file ([sweep] scene, [sweep.grid], ...)")
+    run.add_argument("--out", required=True, help="sweep directory (members/<name>, index)")
+    run.add_argument("--scheduler", help="address of a running Dask scheduler (else a local one)")
+    run.add_argument(
+        "--n-workers", type=int, default=None,
+        help="worker processes of the local cluster (default: cores / the sweep's workers)",
+    )  # fmt: skip
+    run.add_argument(
+        "--overwrite", action="store_true",
+        help="run again the members done with another scene than the sweep file gives them",
+    )  # fmt: skip
+    run.add_argument("--verbose", action="store_true", help="every member's protocol lines")
+    run.add_argument("--debug", action="store_true", help="tracebacks for every error")
+    for name in ("summarise", "summarize"):
+        summary = sub.add_parser(name, help="replica statistics of a sweep's finished members")
+        summary.add_argument("dir", help="sweep directory")
+        summary.add_argument(
+            "--over", action="append", default=None,
+            help="the replica key(s): members that differ only in them are pooled "
+            "(default scene.seed; repeat for several)",
+        )  # fmt: skip
+        summary.add_argument("--out", default=None, help="markdown file (default DIR/...)")
+        summary.add_argument("--debug", action="store_true", help="tracebacks for every error")
+    args = parser.parse_args(argv)
+    args.argv = argv[1:]
+    if getattr(args, "over", None) is None:
+        args.over = ["scene.seed"]
+    if args.command == "run" and args.n_workers is not None and args.n_workers < 1:
+        parser.error(f"--n-workers {args.n_workers}: allowed values are integers >= 1")
+    try:
+        return _run_command(args) if args.command == "run" else _summarise_command(args)
+    except (SweepError, ValueError, OSError) as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

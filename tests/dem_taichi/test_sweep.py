@@ -1,0 +1,200 @@
+"""Sweeps on Dask (`dem_taichi.sweep`): the sweep file, a local-cluster run with a failing
+member, the re-run, the combined dataset and the replica statistics.
+
+The cluster test runs a reduced smoke protocol (no C→B, no radial path, one increment per path,
+linear-response probes only at A, B, C): ~35–45 s per member on this 2-core machine.
+"""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from dem_taichi.findings import mean_interval
+from dem_taichi.sweep import main, read_index, run_sweep
+from dem_taichi.sweep_results import open_sweep, replica_statistics, summarise_sweep
+from dem_taichi.sweep_spec import SweepError, load_sweep, sweep_from_toml
+
+REDUCED = """
+[sweep.set]
+"protocol.path_increments" = 1
+"protocol.run_unloading" = false
+"protocol.radial_stress_ratios" = ""
+"probing.dynamic" = false
+"probing.states" = "A, B, C"
+"probing.every_n_increments" = 0
+"""
+
+
+def test_grid_members_and_names():
+    spec = sweep_from_toml(
+        """
+[sweep]
+scene = "smoke"
+[sweep.set]
+"protocol.path_increments" = 1
+[sweep.grid]
+"scene.seed" = [1, 2]
+contact.mu = [0.2, 0.5]
+[[sweep.members]]
+name = "soft"
+"contact.k_t" = 1.0e4
+[[sweep.members]]
+"long_range.pattern" = "basic"
+"""
+    )
+    names = [m.name for m in spec.members]
+    assert names[:4] == [
+        "soft__seed-1__mu-0.2",
+        "soft__seed-1__mu-0.5",
+        "soft__seed-2__mu-0.2",
+        "soft__seed-2__mu-0.5",
+    ]
+    assert names[4] == "pattern-basic__seed-1__mu-0.2" and len(names) == 8
+    first = spec.members[0]
+    assert first.overrides == {
+        "protocol.path_increments": 1,
+        "contact.k_t": 1.0e4,
+        "scene.seed": 1,
+        "contact.mu": 0.2,
+    }
+    assert "k_t = 10000.0" in first.scene_toml and "seed = 1" in first.scene_toml
+    assert spec.parameter_keys == ("contact.k_t", "scene.seed", "contact.mu", "long_range.pattern")
+    assert len({m.scene_sha256 for m in spec.members}) == 8
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ('[sweep]\nscene = "smoke"\ncolour = 1\n', "[sweep] unknown key(s) colour; allowed keys"),
+        ('[sweep]\nscene = "nosuch"\n[sweep.grid]\n"scene.seed" = [1]\n', "no built-in scene"),
+        ('[sweep]\nscene = "smoke"\narch = "tpu"\n', "allowed values are cpu | gpu"),
+        ('[sweep]\nscene = "smoke"\n', "no members"),
+        ('[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = 3\n', "non-empty list"),
+        ('[sweep]\nscene = "smoke"\n[sweep.grid]\nseed = [1]\n', '"section.key"'),
+        (
+            '[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.sed" = [1, 2]\n',
+            "member sed-1 (scene.sed = 1): [scene] unknown key(s) sed; allowed keys",
+        ),
+        (
+            '[sweep]\nscene = "smoke"\n[sweep.grid]\n"contact.mu" = [0.5, -1.0]\n',
+            "[contact] mu = -1.0 is out of range: allowed",
+        ),
+        (
+            '[sweep]\nscene = "smoke"\n[[sweep.members]]\nname = "a"\n[[sweep.members]]\n'
+            'name = "a"\n',
+            "member name(s) a given to more than one member",
+        ),
+    ],
+)
+def test_invalid_sweep_fails_at_load_naming_the_key(text, expected):
+    with pytest.raises(SweepError) as info:
+        sweep_from_toml(text)
+    assert expected in str(info.value)
+
+
+def test_cli_invalid_sweep_one_line_without_traceback(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('[sweep]\nscene = "smoke"\n[sweep.grid]\n"particles.n_rods" = [0]\n')
+    args = [sys.executable, "-m", "dem_taichi.sweep", str(path), "--out", str(tmp_path / "o")]
+    result = subprocess.run(args, capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: member n_rods-0")
+    assert "[particles] n_rods = 0" in lines[0] and "allowed" in lines[0]
+    assert not (tmp_path / "o").exists()
+    debug = subprocess.run([*args, "--debug"], capture_output=True, text=True, cwd=tmp_path)
+    assert debug.returncode == 1 and "Traceback" in debug.stderr
+
+
+def test_mean_interval_is_student_t():
+    mean, half, n = mean_interval([1.0, 2.0, 3.0, math.nan])
+    assert (mean, n) == (2.0, 3)
+    assert half == pytest.approx(4.302652729911275 / math.sqrt(3))  # t(0.975, 2) · s/√n
+    assert mean_interval([5.0])[1] != mean_interval([5.0])[1]  # NaN half-width for one value
+    assert mean_interval([])[2] == 0
+
+
+def test_local_cluster_sweep_with_a_failing_member_and_a_rerun(tmp_path, capsys):
+    """Three members on a local cluster of 2 processes, one made to fail (its compression gives
+    up after one increment); the others finish and the failure is reported with its reason.
+    After the fix, a re-run (on an existing scheduler) runs only the failed member, and the
+    three open as one dataset along ``member``."""
+    from distributed import LocalCluster
+
+    members = """
+[[sweep.members]]
+"scene.seed" = 1
+[[sweep.members]]
+name = "broken"
+"scene.seed" = 3
+{broken}
+[[sweep.members]]
+"scene.seed" = 2
+"""
+    sweep_file = tmp_path / "smoke.toml"
+    head = '[sweep]\nname = "smoke-test"\nscene = "smoke"\n' + REDUCED
+    sweep_file.write_text(head + members.format(broken='"protocol.max_compression_increments" = 1'))
+    out = tmp_path / "sweep"
+    assert main([str(sweep_file), "--out", str(out), "--n-workers", "2"]) == 1
+    printed = capsys.readouterr().out
+    assert "broken: FAILED: ProtocolError: no fluid–solid transition after 1" in printed
+    assert "seed-1: done" in printed and "seed-2: done" in printed
+    assert "seed-1: started" in printed
+    index = read_index(out)
+    status = {r["name"]: r["status"] for r in index["members"]}
+    assert status == {"seed-1": "done", "broken": "failed", "seed-2": "done"}
+    failed = [r for r in index["members"] if r["name"] == "broken"][0]
+    assert "max_compression_increments" in failed["error"]
+    record = json.loads((out / "members" / "broken" / "member.json").read_text())
+    assert "Traceback" in record["traceback"]
+    assert (out / "index.csv").read_text().splitlines()[0].startswith("name,status,seconds")
+    partial = open_sweep(out)
+    assert list(partial["member"].values) == ["seed-1", "seed-2"]
+    assert partial.attrs["members_not_finished"] == "broken"
+    written = {
+        n: (out / "members" / n / "summary.json").stat().st_mtime_ns for n in ("seed-1", "seed-2")
+    }
+
+    # the fix, and a re-run on an existing scheduler: only the failed member runs
+    sweep_file.write_text(head + members.format(broken=""))
+    spec = load_sweep(sweep_file)
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        outcome = run_sweep(spec, out, scheduler=cluster.scheduler_address, say=lambda _: None)
+    assert outcome.ran == ["broken"] and sorted(outcome.skipped) == ["seed-1", "seed-2"]
+    assert outcome.failed == [] and sorted(outcome.done) == ["broken", "seed-1", "seed-2"]
+    for name, mtime in written.items():  # the finished members were not touched
+        assert (out / "members" / name / "summary.json").stat().st_mtime_ns == mtime
+
+    ds = open_sweep(out)
+    assert list(ds["member"].values) == ["seed-1", "broken", "seed-2"]
+    assert list(ds["state"].values) == ["A", "B", "C"]
+    assert list(ds["scene_seed"].values) == [1, 3, 2]
+    assert ds["scene_seed"].attrs["sweep_key"] == "scene.seed"
+    summary = json.loads((out / "members" / "seed-2" / "summary.json").read_text())
+    assert ds["specific_volume"].sel(member="seed-2", state="C") == pytest.approx(
+        summary["states"]["C"]["specific_volume"]
+    )
+    c = summary["states"]["C"]
+    assert ds["k0_at_C"].sel(member="seed-2") == pytest.approx(c["stress_xx"] / c["stress_yy"])
+    assert np.all(np.isfinite(ds["e_ratio"].values)) and np.all(ds["e_oed_v"].values > 0)
+
+    # replica statistics: mean ± Student-t interval over the three seeds, table and figure
+    stats = replica_statistics(ds)
+    (group,) = stats.values()
+    v_c = group["findings"]["v at C"]
+    expected = mean_interval(ds["specific_volume"].sel(state="C").values)
+    assert (v_c["mean"], v_c["half"], v_c["n"]) == pytest.approx(expected)
+    files = summarise_sweep(out)
+    table = (out / "replica_summary.md").read_text()
+    assert "| E_h/E_v at C |" in table and "| K0 = σ_xx/σ_yy at C |" in table
+    assert (out / "replica_summary.png").stat().st_size > 0
+    reopened = xr.open_dataset(files["dataset"])
+    assert reopened.sizes == {"member": 3, "state": 3}
+    reopened.close()
