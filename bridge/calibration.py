@@ -65,7 +65,7 @@ from .calibration_options import (
 )
 from .calibration_result import CalibrationResult, StageFit, covariance_from_jacobian
 from .moduli import moduli_at_states
-from .runs import WarmStart, k0_run
+from .runs import WarmStart, k0_run, start_state, stress_path_run
 
 
 # ---------------------------------------------------------------------------------------------
@@ -208,7 +208,7 @@ class _Elastic(_Stage):
 class _Fabric(_Stage):
     name = "fabric"
 
-    def __init__(self, series: xr.Dataset, options: CalibrationOptions):
+    def __init__(self, series: xr.Dataset, options: CalibrationOptions, radial=None):
         if series.sizes["point"] < 2:
             raise CalibrationError("stage fabric needs the K0 path with ≥ 2 points (A and C)")
         self.axial = series["axial_stress"].values
@@ -227,6 +227,17 @@ class _Fabric(_Stage):
         self.fitted = tuple(("k0", n) for n in options.fabric_series)
         # the last run's increments start the next run's Newton (nearby parameters)
         self.warm = WarmStart()
+        # radial paths (from A along the DEM's stresses): fabric, and v when asked for
+        self.radial = {}
+        for name, ds in (radial or {}).items():
+            if ds.sizes["point"] < 2:
+                continue
+            wanted = [n for n in ("fabric", "specific_volume") if n in options.fabric_series]
+            self.radial[name] = (ds, {n: ds[n].values[1:] for n in wanted}, WarmStart())
+            for n in wanted:
+                key = "ln_specific_volume" if n == "specific_volume" else n
+                self._scales[f"{name}:{key}"] = options.scale(key)
+            self.fitted += tuple((name, n) for n in wanted)
 
     def pieces(self, params):
         run = k0_run(
@@ -245,6 +256,18 @@ class _Fabric(_Stage):
                 out["k0:ln_specific_volume"] = np.log(model) - np.log(data)
             else:
                 out[f"k0:{name}"] = model - data
+        for path, (ds, data, warm) in self.radial.items():
+            sa = ds["axial_stress"].values.copy()
+            sr = ds["radial_stress"].values.copy()
+            sa[0] = sr[0] = self.p_start  # from the model's state A, as the K0 run
+            start = start_state(self.p_start, params, self.model_options, self.start_fabric)
+            run = stress_path_run(sa, sr, params, self.model_options, start, self.max_increments,
+                                  warm=warm)  # fmt: skip
+            for name, values in data.items():
+                if name == "specific_volume":
+                    out[f"{path}:ln_specific_volume"] = np.log(run[name][1:]) - np.log(values)
+                else:
+                    out[f"{path}:{name}"] = run[name][1:] - values
         return out
 
     def scales(self):
@@ -383,7 +406,9 @@ def build_stages(
         elif stage == "elastic":
             built[stage] = _Elastic(probes, options)
         else:
-            built[stage] = _Fabric(series["k0"], options)
+            radial = {k: v for k, v in series.items() if k.startswith("radial_")}
+            use = radial if "radial" in options.fabric_paths else {}
+            built[stage] = _Fabric(series["k0"], options, use)
     return built
 
 

@@ -74,6 +74,10 @@ class CalibrationOptions:
         standard start) or ``"measured"`` (the DEM's β at A; p_c from the rotated yield surface,
         :func:`bridge.runs.start_state`).
     fabric_series: K0 series fitted in the fabric stage, among ``FABRIC_SERIES``.
+    fabric_paths: paths of the fabric stage: ``"k0"`` always; ``"radial"`` adds every radial
+        path of the series (``radial_1``…, :func:`bridge.series.radial_series`), model runs from
+        A along the DEM's stresses, fitting β (and v when ``fabric_series`` has it): paths at
+        several η are what fix the bounding-fabric law (s, z) beyond the single η of K0.
     elastic_moduli: probe moduli fitted in the elastic stage, among ``ELASTIC_MODULI``
         (the cross term is used only where the probes have it).
     elastic_paths: probe paths of the elastic stage.
@@ -103,6 +107,7 @@ class CalibrationOptions:
     omega_stage: str = "elastic"
     initial_fabric: str = "zero"
     fabric_series: tuple[str, ...] = ("fabric", "stress_ratio")
+    fabric_paths: tuple[str, ...] = ("k0", "radial")
     elastic_moduli: tuple[str, ...] = ELASTIC_MODULI
     elastic_paths: tuple[str, ...] = ("isotropic", "unloading")
     compressibility_min_pressure: float = 0.0
@@ -125,6 +130,7 @@ class CalibrationOptions:
         for name, values, ok in (
             ("fixed", self.fixed, allowed),
             ("fabric_series", self.fabric_series, set(FABRIC_SERIES)),
+            ("fabric_paths", self.fabric_paths, {"k0", "radial"}),
             ("elastic_moduli", self.elastic_moduli, set(ELASTIC_MODULI)),
             ("elastic_paths", self.elastic_paths, {"isotropic", "unloading", "k0"}),
             ("scales", tuple(self.scales), set(DEFAULT_SCALES)),

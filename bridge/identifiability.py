@@ -1,15 +1,15 @@
 """What the data determine: profile likelihoods, parameters at bounds, correlations, replicas.
 
 Profile likelihood (per stage, conditional on the other stages' parameters, like the standard
-errors): for a free parameter θ of a stage, C_p(θ) = min of the stage's cost
-C = ½ Σ (residual/scale)² over the stage's other free parameters, with θ held on a grid that
-walks away from the optimum θ̂ on each side (from 1.96 standard errors, or a tenth of |θ̂|,
-doubling, at most ``max_steps`` steps or up to the search bound), each refit started from the
-previous one. With the
-residual variance s² = 2 C_min/(m − n) (the scaling of the standard errors)
-Δ(θ) = 2 (C_p(θ) − C_min)/s² is asymptotically χ²₁, and the ``level`` (95 %) profile interval
-is where Δ < χ²₁(level) = 3.84; its ends are found by bisection between the grid points that
-bracket the crossing.
+errors; the compressibility and elastic stages together): for a free parameter θ of a stage,
+C_p(θ) = min of the stage's cost C = ½ Σ (residual/scale)² over the stage's other free
+parameters, with θ held on a grid that walks away from the optimum θ̂ on each side (from 1.96
+standard errors, or a twentieth of |θ̂| or of a tenth of the search range, doubling, at most
+``max_steps`` steps or up to the search bound), each refit started from the previous one.
+With the residual variance s² = 2 C_min/(m − n) (the scaling of the standard errors),
+Δ(θ) = 2 (C_p(θ) − C_min)/s² follows F(1, m − n) (χ²₁ for many residuals), and the ``level``
+(95 %) profile interval is where Δ < F⁻¹(level; 1, m − n) (3.84 for m − n → ∞, 4.1 for
+m − n = 35); its ends are bracketed by bisection and interpolated in √Δ.
 
 Each parameter gets a status:
 
@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2
+from scipy.stats import f as f_dist
 
 from tiv_model.errors import TivModelError
 from tiv_model.params import Parameters
@@ -185,8 +186,8 @@ def profile_parameter(
 ) -> Profile:  # fmt: skip
     """Profile of ``symbol`` of the fitted stage ``fit`` at ``params`` (module docstring).
 
-    Each side starts 1.96 standard errors away (a tenth of |θ̂| when the standard error is not
-    usable), doubles the step while Δ stays below half the threshold, jumps to the
+    Each side starts 1.96 standard errors away (see the module docstring when the standard
+    error is not usable), doubles the step while Δ stays below half the threshold, jumps to the
     quadratic-profile estimate of the crossing once it is above half, and brackets the crossing
     by bisection until Δ there is within 1.5× the threshold; the end of the interval is
     interpolated linearly in √Δ (exact for a quadratic profile).
@@ -194,13 +195,16 @@ def profile_parameter(
     free = fit.parameters
     dof = fit.n_data - len(free)
     s2 = 2.0 * fit.cost / dof if dof > 0 and fit.cost > 0 else 1.0
-    threshold = float(chi2.ppf(level, 1))
+    # s² is estimated from the same residuals: Δ follows F(1, m − n) (lmfit's conf_interval
+    # uses the same F test), which is χ²₁ for many residuals
+    threshold = float(f_dist.ppf(level, 1, dof)) if dof > 0 else float(chi2.ppf(level, 1))
     value = float(fit.values[symbol])
     lo, hi = fit.bounds.get(symbol, (-math.inf, math.inf))
     se = fit.standard_errors.get(symbol, math.nan)
     span = hi - lo if math.isfinite(hi - lo) else math.inf
     usable = math.isfinite(se) and 0.0 < se < max(abs(value), 0.1 * span)
-    first = 1.96 * se if usable else 0.1 * max(abs(value), 1e-2)
+    # without a usable standard error: a twentieth of |θ̂| or of a tenth of the search range
+    first = 1.96 * se if usable else 0.05 * max(abs(value), min(0.1 * span, 1.0), 1e-3)
     grid, delta = [value], [0.0]
     ends, closed = {}, {}
     capped = 0

@@ -48,7 +48,14 @@ from .figures import write_figures
 from .identifiability import identifiability
 from .predict import predict_paths, predict_probes, summary
 from .report import report_markdown, write_report
-from .series import PATHS, Convention, SeriesError, all_probe_series, history_series
+from .series import (
+    PATHS,
+    Convention,
+    SeriesError,
+    all_probe_series,
+    history_series,
+    radial_series,
+)
 
 PROG = "python -m bridge.pipeline"
 
@@ -167,6 +174,7 @@ def calibrate_from_results(
             + "; ".join(f"{path}: {reason}" for path, reason in reasons.items())
         )
     series = history_series(history, convention, tuple(available))
+    series.update(radial_series(history, convention))  # radial_1, radial_2… (none: {})
     stages = tuple(options.stages)
     probes: dict[str, xr.Dataset] = {}
     if probes_path is not None:

@@ -3,7 +3,8 @@
 Sections: data and conventions; the parameter table (value ± standard error, units, stage,
 starting value); fit quality per stage and series; every compared prediction with its role
 (fitted or out of sample) and error; what is predicted out of sample (the back-prediction of
-E_h/E_v along K0 in particular); warnings; figures.
+E_h/E_v along K0 in particular); what the data determine (profile likelihoods, when computed);
+warnings; figures.
 """
 
 from __future__ import annotations
@@ -65,8 +66,10 @@ def report_markdown(
     data_description: Mapping[str, object] | None = None,
     figures: Mapping[str, Path] | None = None,
     out_dir: Path | None = None,
+    identifiability=None,
 ) -> str:
-    """The report as markdown text (see the module docstring)."""
+    """The report as markdown text (see the module docstring); ``identifiability`` is a
+    :class:`bridge.identifiability.Identifiability` (profile table and statement)."""
     lines = ["# Calibration of the TIV model on DEM results", ""]
     if data_description:
         lines += ["## Data and conventions", ""]
@@ -135,6 +138,8 @@ def report_markdown(
         "",
     ]
     lines += _k0_anisotropy_lines(runs, model_probes, probes) or ["No K0 probes or run."]
+    if identifiability is not None:
+        lines += ["", *identifiability_lines(identifiability)]
     warnings = result.warnings()
     lines += ["", "## Warnings", ""]
     lines += [f"- {w}" for w in warnings] or ["None."]
@@ -147,6 +152,30 @@ def report_markdown(
     return "\n".join(lines)
 
 
+def identifiability_lines(ide) -> list[str]:
+    """Markdown section: the profile-likelihood table and the statement of what is determined."""
+    pct = f"{100 * ide.level:g} %"
+    lines = [
+        "## What the data determine",
+        "",
+        f"Profile likelihoods ({pct} intervals; {_fmt(ide.seconds, 3)} s): each parameter held "
+        "on a grid, the other free parameters of its stage refitted; an open side gives the "
+        "last point profiled.",
+        "",
+        "| symbol | value | interval | status | at bound | stage |",
+        "|---|---|---|---|---|---|",
+    ]
+    for sym, p in ide.profiles.items():
+        lo = _fmt(p.lower) if p.closed_lower else f"(≤ {_fmt(p.lower)})"
+        hi = _fmt(p.upper) if p.closed_upper else f"(≥ {_fmt(p.upper)})"
+        lines.append(
+            f"| {sym} | {_fmt(p.value, 5)} | [{lo}, {hi}] | {p.status} | {p.at_bound or '—'} "
+            f"| {p.stage} |"
+        )
+    lines += ["", *ide.statement().splitlines()]
+    return lines
+
+
 def write_report(path: str | Path, text: str) -> Path:
     """Write the markdown text; returns the path."""
     target = Path(path)
@@ -155,4 +184,4 @@ def write_report(path: str | Path, text: str) -> Path:
     return target
 
 
-__all__ = ["report_markdown", "write_report"]
+__all__ = ["identifiability_lines", "report_markdown", "write_report"]

@@ -194,9 +194,11 @@ def stress_path_run(
     start: State | None = None,
     max_increments: int = 40,
     start_fabric: float = 0.0,
+    warm: WarmStart | None = None,
 ) -> dict[str, np.ndarray]:
     """Model run following the DEM's (σ_a, σ_r) history (kPa), from ``start`` or from state A
-    (:func:`start_state` at the first point's p with ``start_fabric``)."""
+    (:func:`start_state` at the first point's p with ``start_fabric``); ``warm`` carries
+    starting values between runs."""
     sa = np.asarray(axial_stress, dtype=float)
     sr = np.asarray(radial_stress, dtype=float)
     if start is None:
@@ -206,7 +208,7 @@ def stress_path_run(
         Control.triaxial(axial_stress=a, radial_stress=r)
         for a, r in zip(sa[used], sr[used], strict=True)
     ]
-    states, _ = _run(start, controls, params, options)
+    states, _ = _run(start, controls, params, options, warm=warm)
     return _interpolate(
         _collect(states, params, options), used, sa.size, np.arange(sa.size, dtype=float)
     )

@@ -30,7 +30,9 @@ Paths (DEM stage labels of ``dem_taichi.io.schema.STAGE_CODES``):
 
 * ``isotropic``: state A (last ``isotropic_to_A`` record) then the ``A_to_B`` records;
 * ``k0``: state A then the ``A_to_C`` records (the last one is C);
-* ``unloading``: state C then the ``C_to_B`` records.
+* ``unloading``: state C then the ``C_to_B`` records;
+* ``radial_1``, ``radial_2``…: state A then the records of each radial path (stage ``radial``;
+  the paths are told apart where the mean stress falls back), :func:`radial_series`.
 
 Symbols: σ stress (kPa in the model, DEM units in the files), p mean stress, q deviatoric
 stress, η = q/p, v specific volume (1; the DEM's A/A_solid is identified with the model's
@@ -292,6 +294,53 @@ def history_series(
     return {path: path_series(history, path, convention) for path in paths}
 
 
+#: DEM stage of the radial paths (all of them: they are told apart by their mean stress).
+RADIAL_STAGE = "radial"
+
+
+def radial_indices(history: xr.Dataset) -> list[np.ndarray]:
+    """Record indices of each radial path, state A first: the ``radial`` records split where
+    the mean stress falls (every radial path starts from A and loads in p)."""
+    _require(history, ("stage", "stress_xx", "stress_yy"), "history")
+    labels = _stage_labels(history)
+    records = np.flatnonzero(labels == RADIAL_STAGE)
+    if records.size == 0:
+        return []
+    before = np.flatnonzero((labels == "isotropic_to_A") & (np.arange(labels.size) < records[0]))
+    if before.size == 0:
+        raise SeriesError("radial paths: no isotropic_to_A record before them (state A)")
+    p = 0.5 * (history["stress_xx"].values + history["stress_yy"].values)[records]
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(p) < 0) + 1, [records.size]])
+    return [np.concatenate([[before[-1]], records[a:b]]) for a, b in zip(starts[:-1], starts[1:],
+                                                                          strict=True)]  # fmt: skip
+
+
+def radial_series(history: xr.Dataset, convention: Convention) -> dict[str, xr.Dataset]:
+    """Model series of every radial path of a DEM history, named ``radial_1``, ``radial_2``…
+    in the order of the records, with their DEM and model stress ratios (of the last state)
+    in the attributes ``dem_stress_ratio`` and ``stress_ratio``; {} when there are none."""
+    _require(history, HISTORY_REQUIRED, "history")
+    dim = history["stress_xx"].dims[0]
+    out = {}
+    for k, idx in enumerate(radial_indices(history), start=1):
+
+        def take(name, idx=idx):
+            return np.asarray(history[name].isel({dim: idx}).values, dtype=float)
+
+        values = _state_values(take("stress_yy"), take("stress_xx"), take("specific_volume"),
+                               take("fabric_deviator"), convention)  # fmt: skip
+        sv, sh = values["dem_stress_yy"][-1], values["dem_stress_xx"][-1]
+        attrs = {
+            "path": f"radial_{k}",
+            "dem_stage": RADIAL_STAGE,
+            "record_index": idx.astype(np.int64),
+            "dem_stress_ratio": float(2.0 * (sv - sh) / (sv + sh)),
+            "stress_ratio": float(values["stress_ratio"][-1]),
+        }
+        out[f"radial_{k}"] = _series_dataset(values, convention, attrs)
+    return out
+
+
 def probe_series(
     probes: xr.Dataset, path: str, convention: Convention, method: str = "linear"
 ) -> xr.Dataset:
@@ -401,20 +450,23 @@ def history_from_model(
 ) -> xr.Dataset:
     """A DEM-schema history (dimension ``time``) of model path datasets (tiv_model drivers).
 
-    ``paths`` maps ``"isotropic"``, ``"k0"``, ``"unloading"`` to driver datasets; the first
-    step of the isotropic (else the K0) run is written as the A record (stage
-    ``isotropic_to_A``), each path's later steps with its DEM stage. The unloading run must
-    start at the last K0 state (C).
+    ``paths`` maps ``"isotropic"``, ``"k0"``, ``"unloading"`` (and ``"radial_1"``,
+    ``"radial_2"``…, each starting at A) to driver datasets; the first step of the isotropic
+    (else the K0) run is written as the A record (stage ``isotropic_to_A``), each path's later
+    steps with its DEM stage. The unloading run must start at the last K0 state (C).
     """
     from dem_taichi.io.schema import HISTORY, stage_code
 
     order = [p for p in ("isotropic", "k0", "unloading") if p in paths]
+    radial = sorted((p for p in paths if p.startswith("radial_")), key=lambda p: int(p[7:]))
     if not order:
         raise SeriesError(f"no known path among {sorted(paths)}; use {sorted(PATHS)}")
     first = paths["isotropic"] if "isotropic" in paths else paths["k0"]
     parts = [(first.isel(step=[0]), "isotropic_to_A")]
     for name in order:
         parts.append((paths[name].isel(step=slice(1, None)), PATHS[name][0]))
+    for name in radial:  # from A, like the DEM's radial paths
+        parts.append((paths[name].isel(step=slice(1, None)), RADIAL_STAGE))
     columns: dict[str, list[np.ndarray]] = {}
     stages: list[np.ndarray] = []
     for ds, stage in parts:

@@ -43,10 +43,13 @@ def model_paths(
     unloading_increments: int = 4,
     sigma_v_max: float | None = None,
     start_fabric: float = 0.0,
+    radial_ratios: tuple[float, ...] = (),
 ) -> dict[str, xr.Dataset]:
     """The three paths of the study run with the model (kPa): isotropic p0 → p_max, K0 from p0
     to σ_v = ``sigma_v_max`` (default 1.3 p_max, i.e. p ≈ p_max at K0 ≈ 0.65), both with
-    geometric stress increments, then constant-p unloading from the end of K0 to q = 0.
+    geometric stress increments, then constant-p unloading from the end of K0 to q = 0; and a
+    radial path from A at each model stress ratio η of ``radial_ratios`` (``radial_1``…: one
+    increment onto the ray at p_A, then p geometric to p_max).
     ``start_fabric``: the model's β at A (:func:`bridge.runs.start_state`)."""
     from .runs import start_state
 
@@ -62,7 +65,12 @@ def model_paths(
     states, term = drivers.run_path(start, controls, params, options)
     k0 = drivers.to_dataset(states, params, options, "TIV oedometric (K0) loading", "k0", term)
     unloading = drivers.constant_p_unloading(states[-1], 0.0, unloading_increments, params, options)
-    return {"isotropic": iso, "k0": k0, "unloading": unloading}
+    out = {"isotropic": iso, "k0": k0, "unloading": unloading}
+    for k, eta in enumerate(radial_ratios, start=1):
+        out[f"radial_{k}"] = drivers.radial(eta, p_max, state=start, increments=increments,
+                                            approach_increments=1, params=params,
+                                            options=options)  # fmt: skip
+    return out
 
 
 def _probe_states(paths: dict[str, xr.Dataset], every: int):
@@ -103,11 +111,14 @@ def synthetic_results(
     noise: dict[str, float] | None = None,
     seed: int = 0,
     start_fabric: float = 0.0,
+    radial_ratios: tuple[float, ...] = (),
 ) -> SyntheticPaths:
     """DEM-schema history and probes of model runs (see the module docstring).
 
     ``noise``: standard deviations, keys ``stress`` (relative), ``specific_volume`` (relative),
-    ``fabric`` (absolute, on β_yy − β_xx), ``moduli`` (relative); default none.
+    ``fabric`` (absolute, on β_yy − β_xx), ``moduli`` (relative); default none
+    (:data:`DEM_NOISE` is the DEM's). ``radial_ratios``: see :func:`model_paths` (the probes
+    stay on the study's three paths).
     """
     from tiv_model.drivers import elastic_probe  # noqa: F401 - same stiffness as the drivers
     from tiv_model.energy import stiffness
@@ -115,8 +126,9 @@ def synthetic_results(
 
     convention = convention or Convention(stress_scale_kpa=1.0)
     paths = model_paths(
-        params, options, p0, p_max, increments, unloading_increments, None, start_fabric
-    )
+        params, options, p0, p_max, increments, unloading_increments, None, start_fabric,
+        tuple(radial_ratios),
+    )  # fmt: skip
     attrs = {"title": "synthetic DEM-like results from tiv_model", "source": "bridge.synthetic"}
     history = history_from_model(paths, convention, attrs)
     states = []
@@ -137,6 +149,14 @@ def synthetic_results(
 
 
 NOISE_KEYS = ("stress", "specific_volume", "fabric", "moduli")
+
+#: The DEM's scatter, as standard deviations in the units of :func:`add_noise` (stress scale 1,
+#: fabric scale 1): measured between two replicas of the paper scene (``/work/runs/paper`` and
+#: ``paper_s4``, seeds differ) at the same relaxed states, σ = RMS(difference)/√2: fabric
+#: deviator 0.014–0.017 (isotropic, K0), ln v 0.009–0.013, p 1.3 % (isotropic; the servo holds
+#: the targets), linear-response moduli 4–16 % (E_oed; the cross term up to 30 %).
+DEM_NOISE: dict[str, float] = {"stress": 0.013, "specific_volume": 0.01, "fabric": 0.015,
+                               "moduli": 0.08}  # fmt: skip
 
 
 def add_noise(history: xr.Dataset, probes: xr.Dataset, noise: dict[str, float], seed: int = 0):
