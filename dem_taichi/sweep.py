@@ -191,7 +191,11 @@ def _cluster(scheduler: str | None, n_workers: int | None, spec: SweepSpec, n_ta
             dashboard_address=None,
             silence_logs=40,  # errors only: the sweep prints its own progress
         )
-    return Client(cluster), cluster, f"LocalCluster ({n_workers} process{'es' if n_workers > 1 else ''} × 1 thread)"
+    return (
+        Client(cluster),
+        cluster,
+        f"LocalCluster ({n_workers} process{'es' if n_workers > 1 else ''} × 1 thread)",
+    )
 
 
 def run_sweep(
@@ -312,9 +316,8 @@ def run_sweep(
 
 
 # -- command line -------------------------------------------------------------------------------
-def _run_command(args) -> int:
+def _run_command(args, prog: str) -> int:
     spec = load_sweep(args.sweep)
-    command = "python -m dem_taichi.sweep " + " ".join(args.argv)
     outcome = run_sweep(
         spec,
         args.out,
@@ -322,7 +325,8 @@ def _run_command(args) -> int:
         n_workers=args.n_workers,
         overwrite=args.overwrite,
         verbose=args.verbose,
-        command=command,
+        say=(lambda _: None) if args.quiet else print,
+        command=f"{prog} " + " ".join(args.argv),
     )
     return 1 if outcome.failed else 0
 
@@ -330,29 +334,29 @@ def _run_command(args) -> int:
 def _summarise_command(args) -> int:
     from dem_taichi.sweep_results import summarise_sweep
 
-    files = summarise_sweep(args.dir, over=tuple(args.over), out=args.out)
-    print(Path(files["table"]).read_text())
+    files = summarise_sweep(args.dir, over=tuple(args.over or ["scene.seed"]), out=args.out)
+    if not args.quiet:
+        print(Path(files["table"]).read_text())
     for kind, path in files.items():
         print(f"{kind}: {path}")
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m dem_taichi.sweep [run] SWEEP.toml --out DIR`` | ``summarise DIR``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] not in ("run", "summarise", "summarize", "-h", "--help"):
-        argv = ["run", *argv]
-    parser = argparse.ArgumentParser(
-        prog="python -m dem_taichi.sweep",
+def _parser(prog: str) -> argparse.ArgumentParser:
+    from tiv_model.command_line import ArgumentParser, add_common_flags, int_in_range
+
+    parser = ArgumentParser(
+        prog=prog,
         description="Protocol runs over scene keys on Dask, and their replica statistics.",
     )
+    add_common_flags(parser)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a sweep (the default: `SWEEP.toml --out DIR`)")
     run.add_argument("sweep", help="sweep TOML file ([sweep] scene, [sweep.grid], ...)")
     run.add_argument("--out", required=True, help="sweep directory (members/<name>, index)")
     run.add_argument("--scheduler", help="address of a running Dask scheduler (else a local one)")
     run.add_argument(
-        "--n-workers", type=int, default=None,
+        "--n-workers", type=int_in_range(1), default=None,
         help="worker processes of the local cluster (default: cores / the sweep's workers)",
     )  # fmt: skip
     run.add_argument(
@@ -360,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
         help="run again the members done with another scene than the sweep file gives them",
     )  # fmt: skip
     run.add_argument("--verbose", action="store_true", help="every member's protocol lines")
-    run.add_argument("--debug", action="store_true", help="tracebacks for every error")
+    add_common_flags(run, sub=True)
     for name in ("summarise", "summarize"):
         summary = sub.add_parser(name, help="replica statistics of a sweep's finished members")
         summary.add_argument("dir", help="sweep directory")
@@ -369,21 +373,33 @@ def main(argv: list[str] | None = None) -> int:
             help="the replica key(s): members that differ only in them are pooled "
             "(default scene.seed; repeat for several)",
         )  # fmt: skip
-        summary.add_argument("--out", default=None, help="markdown file (default DIR/...)")
-        summary.add_argument("--debug", action="store_true", help="tracebacks for every error")
-    args = parser.parse_args(argv)
-    args.argv = argv[1:]
-    if getattr(args, "over", None) is None:
-        args.over = ["scene.seed"]
-    if args.command == "run" and args.n_workers is not None and args.n_workers < 1:
-        parser.error(f"--n-workers {args.n_workers}: allowed values are integers >= 1")
-    try:
-        return _run_command(args) if args.command == "run" else _summarise_command(args)
-    except (SweepError, ValueError, OSError) as exc:
-        if args.debug:
-            raise
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        summary.add_argument(
+            "--out", default=None, help="markdown file (default DIR/replica_summary.md)"
+        )
+        add_common_flags(summary, sub=True)
+    return parser
+
+
+def _main(argv: list[str], prog: str) -> int:
+    first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)
+    if first is not None and argv[first] not in ("run", "summarise", "summarize"):
+        argv = [*argv[:first], "run", *argv[first:]]  # `SWEEP.toml --out DIR` is `run ...`
+    args = _parser(prog).parse_args(argv)
+    args.argv = argv
+    if args.command == "run":
+        return _run_command(args, prog)
+    return _summarise_command(args)
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.sweep") -> int:
+    """``python -m dem_taichi.sweep [run] SWEEP.toml --out DIR [--scheduler ADDRESS]
+    [--n-workers N] [--overwrite] [--verbose]`` | ``summarise DIR [--over KEY] [--out FILE]``
+    (both with ``--quiet``, ``--debug``); returns the exit code: 0 every member done, 1 a
+    member failed, 2 bad input (an invalid sweep file: one line naming the key and what is
+    allowed; the traceback with ``--debug``; :mod:`tiv_model.command_line`)."""
+    from tiv_model.command_line import run_command
+
+    return run_command(prog, lambda args: _main(args, prog), argv, user_errors=(SweepError,))
 
 
 if __name__ == "__main__":

@@ -243,7 +243,7 @@ def summary_table(ds: xr.Dataset, stats: dict) -> str:
 
 def summary_figure(ds: xr.Dataset, stats: dict, path: str | Path, over=("scene.seed",)) -> Path:
     """Error bars (mean ± 95 %) per state of v, fabric and E_h/E_v, and of K0, λ*, n; each
-    member a small grey dot."""
+    member a small grey dot beside them."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -258,13 +258,18 @@ def summary_figure(ds: xr.Dataset, stats: dict, path: str | Path, over=("scene.s
     )
     groups = _groups(ds, over)
     width = 0.6 / max(len(groups), 1)
+    dot = 0.25 * width  # the members beside their group's error bar
     for ax, (key, name, ylabel) in zip(axes, panels, strict=False):
         x = np.arange(len(labels))
         for g, (group, mask) in enumerate(groups):
             shift = (g - (len(groups) - 1) / 2) * width
             values = ds[key].values[mask]
             ax.plot(
-                np.repeat(x[None, :] + shift, values.shape[0], 0), values, ".", color="0.7", ms=3
+                np.repeat(x[None, :] + shift + dot, values.shape[0], 0),
+                values,
+                ".",
+                color="0.5",
+                ms=4,
             )
             found = stats[group]["findings"]
             mean = [found[f"{name} at {s}"]["mean"] for s in labels]
@@ -283,7 +288,7 @@ def summary_figure(ds: xr.Dataset, stats: dict, path: str | Path, over=("scene.s
         shift = (g - (len(groups) - 1) / 2) * width
         for i, column in enumerate(columns):
             values = ds[column].values[mask]
-            ax.plot(np.full(values.shape, x[i] + shift), values, ".", color="0.7", ms=3)
+            ax.plot(np.full(values.shape, x[i] + shift + dot), values, ".", color="0.5", ms=4)
         found = stats[group]["findings"]
         ax.errorbar(x + shift, [found[s]["mean"] for s in scalars],
                     yerr=np.nan_to_num([found[s]["half"] for s in scalars]), fmt="s",

@@ -104,11 +104,59 @@ def test_cli_invalid_sweep_one_line_without_traceback(tmp_path):
     result = subprocess.run(args, capture_output=True, text=True, cwd=tmp_path)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: member n_rods-0")
+    assert len(lines) == 1
+    assert lines[0].startswith("python -m dem_taichi.sweep: error: member n_rods-0")
     assert "[particles] n_rods = 0" in lines[0] and "allowed" in lines[0]
     assert not (tmp_path / "o").exists()
     debug = subprocess.run([*args, "--debug"], capture_output=True, text=True, cwd=tmp_path)
     assert debug.returncode == 1 and "Traceback" in debug.stderr
+
+
+def test_scene_file_relative_to_the_sweep_file(tmp_path):
+    from dem_taichi.config import builtin_scene_path
+
+    (tmp_path / "scenes").mkdir()
+    text = builtin_scene_path("smoke").read_text().replace("n_rods = 40", "n_rods = 30")
+    (tmp_path / "scenes" / "mine.toml").write_text(text)
+    (tmp_path / "s.toml").write_text(
+        '[sweep]\nscene = "scenes/mine.toml"\n[sweep.grid]\n"scene.seed" = [4]\n'
+    )
+    spec = load_sweep(tmp_path / "s.toml")
+    assert spec.name == "s" and "n_rods = 30" in spec.members[0].scene_toml
+    (tmp_path / "s.toml").write_text('[sweep]\nscene = "scenes/none.toml"\n')
+    with pytest.raises(SweepError, match="does not exist"):
+        load_sweep(tmp_path / "s.toml")
+
+
+def test_plan_reruns_unfinished_and_failed_members_and_refuses_changed_ones(tmp_path):
+    """Without a cluster: what a re-run would do with the members' records."""
+    from dem_taichi.sweep import _plan
+    from dem_taichi.sweep_member import member_dir, write_json
+
+    spec = sweep_from_toml('[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = [1, 2, 3, 4]\n')
+    done, running, failed, fresh = spec.members
+    for member, status in ((done, "done"), (running, "running"), (failed, "failed")):
+        folder = member_dir(tmp_path, member.name)
+        write_json(folder / "member.json", {"status": status, "error": "ProtocolError: x",
+                                            "scene_sha256": member.scene_sha256})  # fmt: skip
+        (folder / "summary.json").write_text("{}")
+    to_run, skipped, why = _plan(spec, tmp_path, overwrite=False)
+    assert [m.name for m in to_run] == [running.name, failed.name, fresh.name]
+    assert skipped == [done.name]
+    assert "no resume from checkpoints" in why[running.name]
+    assert "failed before (ProtocolError: x)" in why[failed.name]
+    changed = sweep_from_toml(
+        '[sweep]\nscene = "smoke"\n[sweep.set]\n"contact.mu" = 0.3\n[sweep.grid]\n'
+        '"scene.seed" = [1]\n'
+    )
+    with pytest.raises(SweepError, match="seed-1 .* another scene .* --overwrite"):
+        _plan(changed, tmp_path, overwrite=False)
+    assert [m.name for m in _plan(changed, tmp_path, overwrite=True)[0]] == ["seed-1"]
+    foreign = member_dir(tmp_path, fresh.name)
+    foreign.mkdir(parents=True)
+    (foreign / "notes.txt").write_text("mine")
+    with pytest.raises(SweepError, match="not written by a sweep"):
+        _plan(spec, tmp_path, overwrite=False)
 
 
 def test_mean_interval_is_student_t():
