@@ -9,6 +9,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -246,3 +247,11 @@ name = "broken"
     reopened = xr.open_dataset(files["dataset"])
     assert reopened.sizes == {"member": 3, "state": 3}
     reopened.close()
+
+
+@pytest.mark.parametrize(
+    "path", sorted((Path(__file__).resolve().parents[2] / "benchmarks" / "sweeps").glob("*.toml"))
+)
+def test_shipped_sweep_files_load(path):
+    spec = load_sweep(path)
+    assert spec.members and spec.name == path.stem
