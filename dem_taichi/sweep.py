@@ -254,6 +254,8 @@ def run_sweep(
             return
         if msg.get("kind") == "started":
             say(f"{stamp()} {msg['member']}: started ({msg.get('text', '')})")
+            with contextlib.suppress(OSError):
+                write_index(spec, out)  # the index shows the member running
         elif msg.get("kind") == "line" and verbose:
             say(f"{stamp()}   {msg['member']}: {msg.get('text', '')}")
 
@@ -300,10 +302,18 @@ def run_sweep(
                 say(f"{stamp()} {m.name}: done in {record['seconds']:.1f} s {count}")
             else:
                 say(f"{stamp()} {m.name}: FAILED: {record['error']} {count}")
+    except KeyboardInterrupt:
+        say(
+            f"{stamp()} interrupted: the members still running are left unfinished; a re-run "
+            "runs them again from scratch"
+        )
+        raise
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+        with contextlib.suppress(OSError):
+            write_index(spec, out)  # an interrupted sweep's index shows its running members
     outcome.rows = write_index(spec, out)
     outcome.seconds = time.perf_counter() - start
     failed = outcome.failed
