@@ -8,12 +8,16 @@ One increment, strain-controlled:
      R_y = y / p_c²
      R_β = β (1 + c ΔD̄) − β_n − c ΔD̄ β_b   (implicit fabric update, never overshoots β_b)
      R_v = ln v − ln v_n + tr Δε^p           (v_{n+1} = v_n exp(−Δε^p_v))
-   all evaluated at the end of the increment. The Jacobian is a forward finite difference of
-   the residual, evaluated for all columns in one vectorised (batched) call; the line search
-   evaluates eight step lengths in one batched call as well.
+   all evaluated at the end of the increment (:class:`tiv_model.local_problem.LocalProblem`).
+   The Jacobian is exact (``LocalProblem.evaluate_jacobian``); with
+   ``SolverSettings(jacobian="finite_difference")`` it is the forward difference used before
+   issue 12, all columns in one batched call. The line search evaluates eight step lengths in
+   one batched call.
 Mixed control (some stress components prescribed) is solved by an outer Newton on the unknown
-strain components with the algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [I; 0]. An increment that
-does not converge is split in two halves (recursively, up to ``SolverSettings.max_halvings``).
+strain components with the algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [I; 0] on this general
+path; axisymmetric increments go to :mod:`tiv_model.triaxial_solver` (one Newton for both).
+An increment that does not converge is split in two halves (recursively, up to
+``SolverSettings.max_halvings``).
 Failures raise typed errors naming the state; no NaN is ever returned.
 
 Symbols: see :mod:`tiv_model.dissipation` and :mod:`tiv_model.energy`.
