@@ -14,8 +14,11 @@ tensors      Mandel helpers and invariants
 energy       φ, σ = ∂φ/∂ε^e, closed-form stiffness D (general 3×3, batched), convexity check
 dissipation  p_c, D̄, dissipation, yield function, flow direction, bounding fabric
 state        frozen State of a material point
+local_problem residuals of the implicit increment and their exact Jacobian (batched)
 integrate    backward-Euler + Newton with line search, mixed control, substepping, typed errors
-triaxial     scalar axisymmetric fast path of the same equations (used automatically)
+batch        many material points per strain increment in one batched Newton
+triaxial     scalar axisymmetric fast path of the same equations, exact Jacobian (automatic)
+triaxial_solver  its Newton solvers (one Newton for mixed control, the nested one as fallback)
 drivers      element tests → xarray.Dataset along ``step``; elastic_probe
 checks       reusable thermodynamic checks (FD stiffness, Legendre, loops, dissipation)
 cli          ``python -m tiv_model`` / ``tiv-model`` command line
