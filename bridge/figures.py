@@ -28,6 +28,20 @@ COLOURS = {"isotropic": "tab:blue", "k0": "tab:red", "unloading": "tab:green"}
 NAMES = {"isotropic": "isotropic A→B", "k0": "K0 A→C", "unloading": "unloading C→B"}
 
 
+_RADIAL_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan", "tab:pink", "tab:gray")
+
+
+def _colour(path: str) -> str:
+    """Colour of a path; the radial paths (``radial_k``) take the next colours in turn."""
+    if path.startswith("radial_"):
+        return _RADIAL_COLOURS[(int(path[7:]) - 1) % len(_RADIAL_COLOURS)]
+    return COLOURS[path]
+
+
+def _name(path: str) -> str:
+    return NAMES.get(path, path.replace("radial_", "radial path "))
+
+
 def _tag(ds: xr.Dataset, name: str) -> str:
     role = ds[name].attrs.get("role", "out_of_sample")
     return {"fitted": "fitted", "input": "driven by the DEM path"}.get(role, "out of sample")
@@ -35,7 +49,7 @@ def _tag(ds: xr.Dataset, name: str) -> str:
 
 def _stress_paths(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["deviatoric_stress"],
@@ -43,7 +57,7 @@ def _stress_paths(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {NAMES[path]}",
+            label=f"DEM {_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -61,7 +75,7 @@ def _stress_paths(ax, series, runs, probes, model_probes):
 
 def _compressibility(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["specific_volume"],
@@ -69,7 +83,7 @@ def _compressibility(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {NAMES[path]}",
+            label=f"DEM {_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -88,7 +102,7 @@ def _compressibility(ax, series, runs, probes, model_probes):
 
 def _fabric(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["fabric"],
@@ -96,7 +110,7 @@ def _fabric(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {NAMES[path]}",
+            label=f"DEM {_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -109,7 +123,7 @@ def _fabric(ax, series, runs, probes, model_probes):
 
 def _moduli(ax, series, runs, probes, model_probes):
     for path, ds in probes.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(ds["mean_stress"], ds["e_oed_v"], "s", color=c, ms=4, label=f"DEM E_oed,v {path}")
         ax.plot(ds["mean_stress"], ds["e_oed_h"], "^", color=c, ms=4, label=f"DEM E_oed,h {path}")
         if path in model_probes:
@@ -133,7 +147,7 @@ def _moduli(ax, series, runs, probes, model_probes):
                 label=f"TIV at DEM states E_h ({_tag(m, 'e_oed_h')})",
             )
     for path, r in runs.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(
             r["mean_stress"],
             r["e_oed_v"],
@@ -159,14 +173,14 @@ def _moduli(ax, series, runs, probes, model_probes):
 
 def _anisotropy(ax, series, runs, probes, model_probes):
     for path, ds in probes.items():
-        c = COLOURS[path]
+        c = _colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["e_oed_h"] / ds["e_oed_v"],
             "o",
             color=c,
             ms=4,
-            label=f"DEM {NAMES[path]}",
+            label=f"DEM {_name(path)}",
         )
         if path in model_probes:
             m = model_probes[path]
@@ -183,7 +197,7 @@ def _anisotropy(ax, series, runs, probes, model_probes):
             r["mean_stress"],
             r["stiffness_ratio"],
             "-",
-            color=COLOURS[path],
+            color=_colour(path),
             label=f"TIV run {path} ({_tag(r, 'stiffness_ratio')})",
         )
     ax.axhline(1.0, color="0.7", lw=0.5)

@@ -6,7 +6,8 @@ Two kinds of prediction (each a dataset along ``point``, the DEM's points of the
   (:mod:`bridge.runs`): isotropic through the DEM's p; K0 through the DEM's σ_a with ε_r = 0
   (``k0_mode="element"``, default) or following the DEM's (σ_a, σ_r) history
   (``k0_mode="stress"``); unloading from the model's C along the DEM's (p, q) path scaled onto
-  it. Variables: stresses, η, v, β, E_oed,v, E_oed,h, E_h/E_v (model states).
+  it; each radial path (``radial_1``…) from the model's A along the DEM's stresses. Variables:
+  stresses, η, v, β, E_oed,v, E_oed,h, E_h/E_v (model states).
 * **elastic law at the measured probe states** (:func:`predict_probes`): the model's elastic
   stiffness at the DEM's measured (σ, v, β) of every probe: E_oed,v, E_oed,h, C_xxyy,
   E_h/E_v. Along K0 this is the back-prediction of the stiffness anisotropy from the measured
@@ -31,7 +32,14 @@ from tiv_model.errors import TivModelError
 from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
 
 from .moduli import moduli_at_states
-from .runs import RUN_VARIABLES, isotropic_run, k0_run, stress_path_run, unloading_run
+from .runs import (
+    RUN_VARIABLES,
+    isotropic_run,
+    k0_run,
+    start_state,
+    stress_path_run,
+    unloading_run,
+)
 from .series import SERIES_VARIABLES
 
 K0_MODES = ("element", "stress")
@@ -215,6 +223,24 @@ def predict_paths(
             "initial_fabric": initial_fabric,
         }
         out[path] = _dataset(values, dem, path, fitted, attrs, inputs)
+    for path, dem in series.items():  # radial paths: from A along the DEM's stresses
+        if not path.startswith("radial_"):
+            continue
+        sa, sr = dem["axial_stress"].values.copy(), dem["radial_stress"].values.copy()
+        p_a = float(dem["mean_stress"].values[0])
+        sa[0] = sr[0] = p_a
+        try:
+            start = start_state(p_a, params, options, beta_a(dem))
+            run = stress_path_run(sa, sr, params, options, start, max_increments)
+        except TivModelError as exc:
+            raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
+        attrs = {
+            "kind": "model run",
+            "driver": "stress control from the model's A along the DEM's radial path",
+            "initial_fabric": initial_fabric,
+        }
+        values = {k: run[k] for k in RUN_VARIABLES}
+        out[path] = _dataset(values, dem, path, fitted, attrs, _STRESSES)
     return out
 
 

@@ -167,3 +167,26 @@ def test_radial_paths_determine_the_fabric_law_at_the_dem_noise_level(radial_syn
         status[paths] = {s: ide.status(s) for s in ("c", "s", "z", "M")}
     assert status[("k0",)]["z"] != "determined"
     assert status[("k0", "radial")]["c"] == status[("k0", "radial")]["z"] == "determined"
+
+
+def test_pipeline_with_radial_paths(radial_synthetic, tmp_path):
+    """The pipeline reads the radial paths, fits, predicts and draws them (the profiles are
+    left out here for time: they are tested above)."""
+    import json
+
+    from bridge.pipeline import calibrate_from_results
+
+    history, probes = tmp_path / "relaxed_states.nc", tmp_path / "probes.nc"
+    radial_synthetic.history.to_netcdf(history)
+    radial_synthetic.probes.to_netcdf(probes)
+    outcome = calibrate_from_results(history, probes, tmp_path / "out",
+                                     {"stress_scale_kpa": CONVENTION.stress_scale_kpa,
+                                      "fabric_scale": CONVENTION.fabric_scale,
+                                      "identifiability": False})  # fmt: skip
+    assert ["radial_1", "fabric"] in outcome["fitted"]
+    assert "prediction_radial_3" in outcome["files"]
+    saved = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert "identifiability" not in saved
+    assert saved["parameters"]["z"] == pytest.approx(TRUTH.z, rel=1e-4)
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "radial_2" in report and "## What the data determine" not in report
