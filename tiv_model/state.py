@@ -61,6 +61,24 @@ class State:
     def replace(self, **changes) -> State:
         return dataclasses.replace(self, **changes)
 
+    @classmethod
+    def _from_fresh(cls, strain, elastic_strain, stress, specific_volume, fabric,
+                    preconsolidation_pressure, plastic_multiplier, dissipated_energy,
+                    plastic) -> State:  # fmt: skip
+        """A State from arrays of shape (6,) that the caller has just made and hands over (they
+        are made read-only, not copied) and Python floats: the solvers' fast constructor."""
+        obj = object.__new__(cls)
+        for name, arr in (("strain", strain), ("elastic_strain", elastic_strain),
+                          ("stress", stress), ("fabric", fabric)):  # fmt: skip
+            arr.setflags(write=False)
+            object.__setattr__(obj, name, arr)
+        object.__setattr__(obj, "specific_volume", float(specific_volume))
+        object.__setattr__(obj, "preconsolidation_pressure", float(preconsolidation_pressure))
+        object.__setattr__(obj, "plastic_multiplier", float(plastic_multiplier))
+        object.__setattr__(obj, "dissipated_energy", float(dissipated_energy))
+        object.__setattr__(obj, "plastic", bool(plastic))
+        return obj
+
     @property
     def mean_stress(self) -> float:
         """p (kPa)."""

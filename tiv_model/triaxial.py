@@ -155,8 +155,16 @@ class TriaxialModel:
         h_ar = 2.0 * kp * lam + 4.0 * kq * ca * cr
         h_ra = kp * lam + 2.0 * kq * ca * cr
         h_rr = kp * (2.0 * lam + g2) + 4.0 * kq * cr * cr
-        sta_g = [h_aa * ta_g[i] + h_ar * tr_g[i] for i in range(3)] + [xx * sta]
-        str_g = [h_ra * ta_g[i] + h_rr * tr_g[i] for i in range(3)] + [xx * st_r]
+        sta_g = [
+            h_aa * ta_g[0] + h_ar * tr_g[0],
+            h_aa * ta_g[1] + h_ar * tr_g[1],
+            h_aa * ta_g[2] + h_ar * tr_g[2],
+        ] + [xx * sta]
+        str_g = [
+            h_ra * ta_g[0] + h_rr * tr_g[0],
+            h_ra * ta_g[1] + h_rr * tr_g[1],
+            h_ra * ta_g[2] + h_rr * tr_g[2],
+        ] + [xx * st_r]
         if self.form_a:
             sa, sr = fa * sta, fr * st_r
             sa_g = [fa * sta_g[0], fa * sta_g[1], fa * sta_g[2] - 2.0 / 3.0 * db * sta, xx * sa]
@@ -165,9 +173,24 @@ class TriaxialModel:
             ds = sta - st_r
             sa = sta - 4.0 / 9.0 * k4 * ds
             sr = st_r + 2.0 / 9.0 * k4 * ds
-            dsg = [sta_g[i] - str_g[i] for i in range(4)]
-            sa_g = [sta_g[i] - 4.0 / 9.0 * k4 * dsg[i] for i in range(4)]
-            sr_g = [str_g[i] + 2.0 / 9.0 * k4 * dsg[i] for i in range(4)]
+            dsg = [
+                sta_g[0] - str_g[0],
+                sta_g[1] - str_g[1],
+                sta_g[2] - str_g[2],
+                sta_g[3] - str_g[3],
+            ]
+            sa_g = [
+                sta_g[0] - 4.0 / 9.0 * k4 * dsg[0],
+                sta_g[1] - 4.0 / 9.0 * k4 * dsg[1],
+                sta_g[2] - 4.0 / 9.0 * k4 * dsg[2],
+                sta_g[3] - 4.0 / 9.0 * k4 * dsg[3],
+            ]
+            sr_g = [
+                str_g[0] + 2.0 / 9.0 * k4 * dsg[0],
+                str_g[1] + 2.0 / 9.0 * k4 * dsg[1],
+                str_g[2] + 2.0 / 9.0 * k4 * dsg[2],
+                str_g[3] + 2.0 / 9.0 * k4 * dsg[3],
+            ]
             sa_g[2] -= 4.0 / 9.0 * dk4 * ds
             sr_g[2] += 2.0 / 9.0 * dk4 * ds
         parts = (sta, st_r, sta_g, str_g, ta_b, tr_b, ta_b_g, tr_b_g, ta_g, tr_g, quad, factor)
@@ -245,12 +268,16 @@ class TriaxialModel:
         ea, er, mu, beta, lnv = x
         sa, sr, sa_g, sr_g, parts = self.stress_gradient(ea, er, beta, lnv)
         sta, st_r, sta_g, str_g, ta_b, tr_b, ta_b_g, tr_b_g, ta_g, tr_g, quad, factor = parts
-        r4 = range(4)
         # gradients below are over s = (ε^e_a, ε^e_r, β, ln v); index 2 is β, 3 is ln v
         p = (sa + 2.0 * sr) * _THIRD
         q = sa - sr
-        p_g = [(sa_g[i] + 2.0 * sr_g[i]) * _THIRD for i in r4]
-        q_g = [sa_g[i] - sr_g[i] for i in r4]
+        p_g = [
+            (sa_g[0] + 2.0 * sr_g[0]) * _THIRD,
+            (sa_g[1] + 2.0 * sr_g[1]) * _THIRD,
+            (sa_g[2] + 2.0 * sr_g[2]) * _THIRD,
+            (sa_g[3] + 2.0 * sr_g[3]) * _THIRD,
+        ]
+        q_g = [sa_g[0] - sr_g[0], sa_g[1] - sr_g[1], sa_g[2] - sr_g[2], sa_g[3] - sr_g[3]]
         pc = self.p_r * math.exp(-(lnv - self.ln_n) * self.inv_lambda)
         pc_v = -pc * self.inv_lambda
         if not p > 0.0:
@@ -261,20 +288,31 @@ class TriaxialModel:
         bb = f * q / p
         bb_q = f / p + fp * abs(q) / (p * p)
         bb_p = -q / (p * p) * (f + fp * eta)
-        bb_g = [bb_q * q_g[i] + bb_p * p_g[i] for i in r4]
+        bb_g = [
+            bb_q * q_g[0] + bb_p * p_g[0],
+            bb_q * q_g[1] + bb_p * p_g[1],
+            bb_q * q_g[2] + bb_p * p_g[2],
+            bb_q * q_g[3] + bb_p * p_g[3],
+        ]
         if self.cf:
             phi = factor * math.exp(self.ln_c0 + self.a * math.log(quad))
             # ∂φ/∂ε^e_a = σ_a, ∂φ/∂ε^e_r = 2σ_r (two radial directions), ∂φ/∂β = G, ∂φ/∂ln v = Xφ
             gfab = sta * ta_b + 2.0 * st_r * tr_b
             gfab_g = [
-                sta_g[i] * ta_b + 2.0 * str_g[i] * tr_b + sta * ta_b_g[i] + 2.0 * st_r * tr_b_g[i]
-                for i in range(3)
-            ] + [self.x * gfab]
+                sta_g[k] * ta_b + 2.0 * str_g[k] * tr_b + sta * ta_b_g[k] + 2.0 * st_r * tr_b_g[k]
+                for k in range(3)
+            ]
+            gfab_g.append(self.x * gfab)
             shift_g = [-self.x * sa, -self.x * 2.0 * sr, -self.x * gfab, -self.x * self.x * phi]
             shift = -self.x * phi
             gap = bb - beta
             size = 0.5 * pc + self.c * gfab * gap
-            size_g = [self.c * (gfab_g[i] * gap + gfab * bb_g[i]) for i in r4]
+            size_g = [
+                self.c * (gfab_g[0] * gap + gfab * bb_g[0]),
+                self.c * (gfab_g[1] * gap + gfab * bb_g[1]),
+                self.c * (gfab_g[2] * gap + gfab * bb_g[2]),
+                self.c * (gfab_g[3] * gap + gfab * bb_g[3]),
+            ]
             size_g[2] -= self.c * gfab
             size_g[3] += 0.5 * pc_v
         else:
@@ -283,44 +321,74 @@ class TriaxialModel:
             size = 0.5 * pc
             size_g = [0.0, 0.0, 0.0, 0.5 * pc_v]
         ph = p - shift
-        ph_g = [p_g[i] - shift_g[i] for i in r4]
+        ph_g = [p_g[0] - shift_g[0], p_g[1] - shift_g[1], p_g[2] - shift_g[2], p_g[3] - shift_g[3]]
         rq = q - ph * beta
-        rq_g = [q_g[i] - beta * ph_g[i] for i in r4]
+        rq_g = [
+            q_g[0] - beta * ph_g[0],
+            q_g[1] - beta * ph_g[1],
+            q_g[2] - beta * ph_g[2],
+            q_g[3] - beta * ph_g[3],
+        ]
         rq_g[2] -= ph
         m2 = self.m2 - beta * beta
         hh = ph - 0.5 * pc
         hh_g = [ph_g[0], ph_g[1], ph_g[2], ph_g[3] - 0.5 * pc_v]
         gap2 = size * size - hh * hh
         y = rq * rq - m2 * gap2
-        y_g = [2.0 * rq * rq_g[i] - 2.0 * m2 * (size * size_g[i] - hh * hh_g[i]) for i in r4]
+        y_g = [
+            2.0 * rq * rq_g[0] - 2.0 * m2 * (size * size_g[0] - hh * hh_g[0]),
+            2.0 * rq * rq_g[1] - 2.0 * m2 * (size * size_g[1] - hh * hh_g[1]),
+            2.0 * rq * rq_g[2] - 2.0 * m2 * (size * size_g[2] - hh * hh_g[2]),
+            2.0 * rq * rq_g[3] - 2.0 * m2 * (size * size_g[3] - hh * hh_g[3]),
+        ]
         y_g[2] += 2.0 * beta * gap2
         iso = 2.0 / 3.0 * (m2 * hh - rq * beta)
-        iso_g = [2.0 / 3.0 * (m2 * hh_g[i] - beta * rq_g[i]) for i in r4]
+        iso_g = [
+            2.0 / 3.0 * (m2 * hh_g[0] - beta * rq_g[0]),
+            2.0 / 3.0 * (m2 * hh_g[1] - beta * rq_g[1]),
+            2.0 / 3.0 * (m2 * hh_g[2] - beta * rq_g[2]),
+            2.0 / 3.0 * (m2 * hh_g[3] - beta * rq_g[3]),
+        ]
         iso_g[2] -= 2.0 / 3.0 * (2.0 * beta * hh + rq)
         na, nr = 2.0 * rq + iso, -rq + iso
-        na_g = [2.0 * rq_g[i] + iso_g[i] for i in r4]
-        nr_g = [iso_g[i] - rq_g[i] for i in r4]
+        na_g = [
+            2.0 * rq_g[0] + iso_g[0],
+            2.0 * rq_g[1] + iso_g[1],
+            2.0 * rq_g[2] + iso_g[2],
+            2.0 * rq_g[3] + iso_g[3],
+        ]
+        nr_g = [iso_g[0] - rq_g[0], iso_g[1] - rq_g[1], iso_g[2] - rq_g[2], iso_g[3] - rq_g[3]]
         # plastic strain increments Δε^p = (μ/p_c) n and ΔD̄ = |μ/p_c| D̄₁(n, β)
         sc = mu / pc
         sc_v = -sc * pc_v / pc
         dpa, dpr = sc * na, sc * nr
-        dpa_g = [sc * na_g[i] for i in r4]
-        dpr_g = [sc * nr_g[i] for i in r4]
+        dpa_g = [sc * na_g[0], sc * na_g[1], sc * na_g[2], sc * na_g[3]]
+        dpr_g = [sc * nr_g[0], sc * nr_g[1], sc * nr_g[2], sc * nr_g[3]]
         dpa_g[3] += sc_v * na
         dpr_g[3] += sc_v * nr
         dpa_mu, dpr_mu = na / pc, nr / pc
         ddn = na - nr
         wn = na + 2.0 * nr + 2.0 / 3.0 * beta * ddn
-        ddn_g = [na_g[i] - nr_g[i] for i in r4]
-        wn_g = [na_g[i] + 2.0 * nr_g[i] + 2.0 / 3.0 * beta * ddn_g[i] for i in r4]
+        ddn_g = [na_g[0] - nr_g[0], na_g[1] - nr_g[1], na_g[2] - nr_g[2], na_g[3] - nr_g[3]]
+        wn_g = [
+            na_g[0] + 2.0 * nr_g[0] + 2.0 / 3.0 * beta * ddn_g[0],
+            na_g[1] + 2.0 * nr_g[1] + 2.0 / 3.0 * beta * ddn_g[1],
+            na_g[2] + 2.0 * nr_g[2] + 2.0 / 3.0 * beta * ddn_g[2],
+            na_g[3] + 2.0 * nr_g[3] + 2.0 / 3.0 * beta * ddn_g[3],
+        ]
         wn_g[2] += 2.0 / 3.0 * ddn
         d1 = math.sqrt(wn * wn + 4.0 / 9.0 * m2 * ddn * ddn)
-        d1_g = [(wn * wn_g[i] + 4.0 / 9.0 * m2 * ddn * ddn_g[i]) / d1 for i in r4]
+        d1_g = [
+            (wn * wn_g[0] + 4.0 / 9.0 * m2 * ddn * ddn_g[0]) / d1,
+            (wn * wn_g[1] + 4.0 / 9.0 * m2 * ddn * ddn_g[1]) / d1,
+            (wn * wn_g[2] + 4.0 / 9.0 * m2 * ddn * ddn_g[2]) / d1,
+            (wn * wn_g[3] + 4.0 / 9.0 * m2 * ddn * ddn_g[3]) / d1,
+        ]
         d1_g[2] -= 4.0 / 9.0 * beta * ddn * ddn / d1
         asc = abs(sc)
         ssc = 1.0 if sc >= 0.0 else -1.0
         dbar = asc * d1
-        dbar_g = [asc * d1_g[i] for i in r4]
+        dbar_g = [asc * d1_g[0], asc * d1_g[1], asc * d1_g[2], asc * d1_g[3]]
         dbar_g[3] += ssc * sc_v * d1
         dbar_mu = ssc * d1 / pc
         cd = self.c * dbar
@@ -333,17 +401,27 @@ class TriaxialModel:
             lnv - lnv_n + dpa + 2.0 * dpr,
         )
         pc2 = pc * pc
-        r2_g = [y_g[i] / pc2 for i in r4]
+        r2_g = [y_g[0] / pc2, y_g[1] / pc2, y_g[2] / pc2, y_g[3] / pc2]
         r2_g[3] -= 2.0 * y * pc_v / (pc2 * pc)
         cgap = self.c * (beta - bb)
-        r3_g = [cgap * dbar_g[i] - cd * bb_g[i] for i in r4]
+        r3_g = [
+            cgap * dbar_g[0] - cd * bb_g[0],
+            cgap * dbar_g[1] - cd * bb_g[1],
+            cgap * dbar_g[2] - cd * bb_g[2],
+            cgap * dbar_g[3] - cd * bb_g[3],
+        ]
         r3_g[2] += 1.0 + cd
         rows_g = (
             [dpa_g[0] + 1.0, dpa_g[1], dpa_g[2], dpa_g[3]],
             [dpr_g[0], dpr_g[1] + 1.0, dpr_g[2], dpr_g[3]],
             r2_g,
             r3_g,
-            [dpa_g[i] + 2.0 * dpr_g[i] for i in r4],
+            [
+                dpa_g[0] + 2.0 * dpr_g[0],
+                dpa_g[1] + 2.0 * dpr_g[1],
+                dpa_g[2] + 2.0 * dpr_g[2],
+                dpa_g[3] + 2.0 * dpr_g[3],
+            ],
         )
         rows_g[4][3] += 1.0
         mu_col = (dpa_mu, dpr_mu, 0.0, cgap * dbar_mu, dpa_mu + 2.0 * dpr_mu)

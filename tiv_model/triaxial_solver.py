@@ -110,12 +110,12 @@ def _negative_multiplier(mu, strain_scale, state, settings, par, ea_n, er_n):
 
 
 def _elastic_state(state, d_axial, d_radial, ta, tr, sa, sr, pc) -> State:
-    return State(
+    return State._from_fresh(
         strain=state.strain + triaxial(d_axial, d_radial),
         elastic_strain=triaxial(ta, tr),
         stress=triaxial(sa, sr),
         specific_volume=state.specific_volume,
-        fabric=state.fabric,
+        fabric=state.fabric.copy(),
         preconsolidation_pressure=pc,
         plastic_multiplier=state.plastic_multiplier,
         dissipated_energy=state.dissipated_energy,
@@ -126,7 +126,7 @@ def _elastic_state(state, d_axial, d_radial, ta, tr, sa, sr, pc) -> State:
 def _plastic_state(state, d_axial, d_radial, x, sa, sr, aux) -> State:
     ea, er, mu, beta, lnv = x
     pc, _, _, dbar, w = aux
-    return State(
+    return State._from_fresh(
         strain=state.strain + triaxial(d_axial, d_radial),
         elastic_strain=triaxial(ea, er),
         stress=triaxial(sa, sr),
