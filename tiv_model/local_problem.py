@@ -49,6 +49,18 @@ def _mv(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
     return (matrix @ vector[:, :, None])[:, :, 0]
 
 
+def _vm(vector: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Row vector times matrix per point: (n, i), (n, i, j) → (n, j)."""
+    return (vector[:, None, :] @ matrix)[:, 0, :]
+
+
+def _in_beta(vector: np.ndarray) -> np.ndarray:
+    """A row vector times ∂β/∂s = [0 | I | 0]: its 13 state columns (n, 13)."""
+    out = np.zeros((vector.shape[0], 13))
+    out[:, 6:12] = vector
+    return out
+
+
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, :, None] * b[:, None, :]
 
@@ -178,7 +190,7 @@ class LocalProblem:
         pdt = pmat @ d_t
         dsig = np.concatenate([pdt @ pmat, pdt @ dm_db + dpst_db, (xx * sigma)[:, :, None]], axis=2)
         # -- φ, φ_β (deviatoric) and their gradients ----------------------------------------
-        fb_raw = np.einsum("nij,ni->nj", dm_db, st)
+        fb_raw = _vm(st, dm_db)
         dmt = np.swapaxes(dm_db, 1, 2)
         if opt.anisotropy == "A":
             e2 = -om * (_outer(dbs, sst) + bs[:, None, None] * s_st)
@@ -224,9 +236,7 @@ class LocalProblem:
             shift, dshift = -xx * phi, -xx * dphi
             gap = bound - beta
             size = 0.5 * pc + par.c * np.sum(fb * gap, axis=1)
-            dsize = 0.5 * dpc + par.c * (
-                np.einsum("ni,nij->nj", gap, dfb) + np.einsum("ni,nij->nj", fb, dbound - dbeta)
-            )
+            dsize = 0.5 * dpc + par.c * (_vm(gap, dfb) + _vm(fb, dbound) - _in_beta(fb))
         else:
             shift, dshift = np.zeros(n), np.zeros((n, 13))
             size, dsize = 0.5 * pc, 0.5 * dpc
@@ -243,12 +253,12 @@ class LocalProblem:
         dhh = dph - 0.5 * dpc
         gap2 = size * size - hh * hh
         y = 1.5 * np.sum(rel * rel, axis=1) - m2 * gap2
-        dy = (3.0 * np.einsum("ni,nij->nj", rel, drel) - dm2 * gap2[:, None]
+        dy = (3.0 * _vm(rel, drel) - dm2 * gap2[:, None]
               - 2.0 * m2[:, None] * (size[:, None] * dsize - hh[:, None] * dhh))  # fmt: skip
         rb = np.sum(rel * beta, axis=1)
         iso = 2.0 / 3.0 * m2 * hh - rb
         diso = 2.0 / 3.0 * (dm2 * hh[:, None] + m2[:, None] * dhh) - (
-            np.einsum("ni,nij->nj", beta, drel) + np.einsum("ni,nij->nj", rel, dbeta)
+            _vm(beta, drel) + _in_beta(rel)
         )
         flow = 3.0 * rel + iso[:, None] * IDENTITY_MANDEL
         dflow = 3.0 * drel + IDENTITY_MANDEL[None, :, None] * diso[:, None, :]
@@ -261,10 +271,10 @@ class LocalProblem:
         en = deviator(flow)
         ee = np.sum(en * en, axis=1)
         d1 = np.sqrt(wn * wn + 2.0 / 3.0 * m2 * ee)
-        dwn = (dflow[:, 0] + dflow[:, 1] + dflow[:, 2] + np.einsum("ni,nij->nj", beta, dflow)
-               + np.einsum("ni,nij->nj", flow, dbeta))  # fmt: skip
+        dwn = (dflow[:, 0] + dflow[:, 1] + dflow[:, 2] + _vm(beta, dflow)
+               + _in_beta(flow))  # fmt: skip
         den = DEVIATORIC_PROJECTOR_MANDEL[None] @ dflow
-        dee = 2.0 * np.einsum("ni,nij->nj", en, den)
+        dee = 2.0 * _vm(en, den)
         dd1 = (wn[:, None] * dwn + (dm2 * ee[:, None] + m2[:, None] * dee) / 3.0) / d1[:, None]
         sign = np.where(sc >= 0.0, 1.0, -1.0)
         dbar = np.abs(sc) * d1
