@@ -24,9 +24,16 @@ import numpy as np
 import xarray as xr
 
 from dem_taichi.findings import STATE_MEASURES, mean_interval, run_findings, state_findings
+from dem_taichi.io import open_history
 from dem_taichi.io.schema import HISTORY_VARIABLES, PROBE_VARIABLES
 
-__all__ = ["open_sweep", "replica_statistics", "summary_table", "summarise_sweep"]
+__all__ = [
+    "open_sweep",
+    "open_relaxed_states",
+    "replica_statistics",
+    "summary_table",
+    "summarise_sweep",
+]
 
 #: Per-member findings of :func:`dem_taichi.findings.run_findings`: dataset name, key, long name.
 RUN_SCALARS = (
@@ -144,6 +151,48 @@ def open_sweep(out_dir: str | Path) -> xr.Dataset:
         "source": "dem_taichi.sweep_results.open_sweep",
     }
     return ds
+
+
+def open_relaxed_states(out_dir: str | Path) -> xr.Dataset:
+    """Every relaxed path state of the finished members (``relaxed_states.nc``, the history
+    schema) as one dataset along ``member`` × ``record``: record k is the k-th relaxed state of
+    a member's run (gas → A increments, then the paths in the order run), padded with NaN to
+    the longest run; ``stage_label`` says which path each record belongs to. The swept keys
+    are coordinates along ``member``, as in :func:`open_sweep`."""
+    out = Path(out_dir)
+    if not (out / "sweep.json").exists():
+        raise FileNotFoundError(f"{out / 'sweep.json'} does not exist: not a sweep directory")
+    sweep, members, not_finished = _finished_members(out)
+    if not members:
+        raise ValueError(f"sweep in {out}: no finished member")
+    parts = []
+    for m in members:
+        ds = open_history(out / "members" / m["name"] / "relaxed_states.nc")
+        ds = ds.drop_indexes("time").rename_dims(time="record")
+        parts.append(ds.assign_coords(record=np.arange(ds.sizes["record"])))
+    combined = xr.concat(
+        parts,
+        dim="member",
+        data_vars="all",
+        coords="all",
+        join="outer",
+        compat="equals",
+        combine_attrs="drop_conflicts",
+    )
+    combined = combined.assign_coords(member=[m["name"] for m in members])
+    keys: dict[str, None] = {}
+    for m in sweep["members"]:
+        keys.update(dict.fromkeys(m["parameters"]))
+    for key in keys:
+        values = _coordinate([m["parameters"].get(key) for m in members])
+        combined = combined.assign_coords({parameter_name(key): ("member", values)})
+        combined[parameter_name(key)].attrs["sweep_key"] = key
+    combined.attrs.update(
+        sweep=sweep["sweep"],
+        members_not_finished=", ".join(not_finished),
+        title=f"DEM protocol sweep {sweep['sweep']}: relaxed path states of the finished members",
+    )
+    return combined
 
 
 def _findings_rows(ds: xr.Dataset) -> list[tuple[str, np.ndarray]]:

@@ -17,7 +17,12 @@ import xarray as xr
 
 from dem_taichi.findings import mean_interval
 from dem_taichi.sweep import main, read_index, run_sweep
-from dem_taichi.sweep_results import open_sweep, replica_statistics, summarise_sweep
+from dem_taichi.sweep_results import (
+    open_relaxed_states,
+    open_sweep,
+    replica_statistics,
+    summarise_sweep,
+)
 from dem_taichi.sweep_spec import SweepError, load_sweep, sweep_from_toml
 
 REDUCED = """
@@ -233,6 +238,13 @@ name = "broken"
     c = summary["states"]["C"]
     assert ds["k0_at_C"].sel(member="seed-2") == pytest.approx(c["stress_xx"] / c["stress_yy"])
     assert np.all(np.isfinite(ds["e_ratio"].values)) and np.all(ds["e_oed_v"].values > 0)
+
+    relaxed = open_relaxed_states(out)
+    assert relaxed.sizes["member"] == 3 and "A_to_C" in set(relaxed["stage_label"].values.ravel())
+    on_c = relaxed["stage_label"].sel(member="seed-2").values == "A_to_C"
+    assert relaxed["specific_volume"].sel(member="seed-2").values[on_c][-1] == pytest.approx(
+        summary["states"]["C"]["specific_volume"]
+    )
 
     # replica statistics: mean ± Student-t interval over the three seeds, table and figure
     stats = replica_statistics(ds)
