@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dem_taichi.config import Scene, SceneError
+from dem_taichi.gas_placement import PlacementError, place_rods
 
 __all__ = [
     "RodGeometry",
@@ -148,6 +149,10 @@ def generate_gas(scene: Scene, max_attempts_per_rod: int = 10_000) -> GasState:
     another rod (minimum image). Velocities are Gaussian with rms ``initial_speed`` per component,
     with the mean removed; angular velocities have the matching rms ``initial_speed / radius of
     gyration``. Deterministic for a given ``[scene] seed``.
+
+    The placement is random sequential (:func:`dem_taichi.gas_placement.place_rods`: batches
+    checked with periodic k-d trees, 1e5 rods in seconds); it accepts the same rods from the
+    same random numbers as the rod-by-rod loop it replaced, so the gas is bitwise unchanged.
     """
     p = scene.particles
     geo = rod_geometry(scene)
@@ -164,39 +169,16 @@ def generate_gas(scene: Scene, max_attempts_per_rod: int = 10_000) -> GasState:
             f"[particles] n_rods = {n} gives a cell of side {side:.3g} < 2 x (rod length + range) "
             f"= {2 * (geo.length + clearance):.3g}; use more rods or a lower initial_area_fraction"
         )
-    # centroid bins of side >= rod length + clearance: only the 3x3 neighbouring bins can clash
-    n_bins = max(1, int(side // (geo.length + clearance)))
-    bins: dict[tuple[int, int], list[int]] = {}
-    disc_of_rod = np.zeros((n, geo.n_spheres, 2))
-    positions = np.zeros((n, 2))
-    angles = np.zeros(n)
-    for r in range(n):
-        for _attempt in range(max_attempts_per_rod):
-            x = rng.uniform(0.0, side, size=2)
-            th = rng.uniform(0.0, math.pi)
-            discs = x + geo.offsets[:, None] * np.array([math.cos(th), math.sin(th)])
-            bx, by = (int(x[0] / side * n_bins) % n_bins, int(x[1] / side * n_bins) % n_bins)
-            near = [
-                q
-                for ix in {(bx + k) % n_bins for k in (-1, 0, 1)}
-                for iy in {(by + k) % n_bins for k in (-1, 0, 1)}
-                for q in bins.get((ix, iy), ())
-            ]
-            if near:
-                other = disc_of_rod[near].reshape(-1, 2)
-                diff = discs[:, None, :] - other[None, :, :]
-                diff -= np.round(diff / cell) * cell
-                if np.min(np.einsum("ijk,ijk->ij", diff, diff)) < clearance * clearance:
-                    continue
-            positions[r], angles[r] = x, th
-            disc_of_rod[r] = discs
-            bins.setdefault((bx, by), []).append(r)
-            break
-        else:
-            raise SceneError(
-                f"could not place rod {r} of {n} without overlap after {max_attempts_per_rod} "
-                f"attempts; lower [particles] initial_area_fraction = {p.initial_area_fraction}"
-            )
+    try:
+        positions, angles, _ = place_rods(
+            rng, n, side, geo.offsets, clearance, max_attempts_per_rod
+        )
+    except PlacementError as error:
+        raise SceneError(
+            f"could not place rod {error.rod} of {n} without overlap after "
+            f"{max_attempts_per_rod} attempts; lower [particles] initial_area_fraction = "
+            f"{p.initial_area_fraction}"
+        ) from None
     velocity = rng.normal(0.0, p.initial_speed, size=(n, 2))
     if n > 1:
         velocity -= velocity.mean(axis=0)
