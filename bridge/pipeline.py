@@ -169,9 +169,12 @@ def calibrate_from_results(
         except SeriesError as error:
             reasons[path] = str(error)
     if not available:  # say why no path could be read instead of "given: []"
+        by_reason: dict[str, list[str]] = {}
+        for path, reason in reasons.items():
+            by_reason.setdefault(reason, []).append(path)
         raise SeriesError(
             f"no loading path could be read from {used_history}: "
-            + "; ".join(f"{path}: {reason}" for path, reason in reasons.items())
+            + "; ".join(f"{', '.join(paths)}: {reason}" for reason, paths in by_reason.items())
         )
     series = history_series(history, convention, tuple(available))
     series.update(radial_series(history, convention))  # radial_1, radial_2… (none: {})

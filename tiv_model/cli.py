@@ -132,6 +132,11 @@ def _parameters(overrides: list[str]) -> Parameters:
         key, sep, value = item.partition("=")
         if not sep:
             raise ParameterError(f"--param {item!r}: expected SYMBOL=VALUE")
+        if key.strip() not in SYMBOLS.values():
+            raise ParameterError(
+                f"--param {item!r}: unknown symbol {key.strip()!r}; allowed: "
+                + ", ".join(SYMBOLS.values())
+            )
         try:
             changes[key.strip()] = float(value)
         except ValueError:
@@ -145,9 +150,13 @@ def _check_path(args: argparse.Namespace, params: Parameters) -> None:
     name = end.get(args.command)
     if name is not None and getattr(args, name) <= args.p0:
         option = "--" + name.replace("_", "-")
+        what = (
+            "unload first loads K0 from p0 to it"
+            if args.command == "unload"
+            else f"the {args.command} path loads from p0 (for unloading use the unload command)"
+        )
         raise UsageError(
-            f"{option} {getattr(args, name):g} must be greater than --p0 {args.p0:g} kPa: the "
-            f"{args.command} path loads from p0 (for unloading use the unload command)"
+            f"{option} {getattr(args, name):g} must be greater than --p0 {args.p0:g} kPa: {what}"
         )
     if args.command == "radial":
         m = params.critical_stress_ratio

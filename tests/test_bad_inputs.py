@@ -1,0 +1,293 @@
+"""Bad inputs across the command lines (issue 11): each is refused with its exit code, one line
+on stderr naming what is wrong (the words checked), and no traceback.
+
+Entry points: ``python -m dem_taichi run|protocol`` (:func:`dem_taichi.cli.main`),
+``python -m dem_taichi.protocol``, ``python -m tiv_model`` and ``python -m bridge.pipeline``,
+called in process (their ``main`` returns the exit code) and, for a few, as real processes.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from dem_taichi.config import load_scene, scene_to_toml
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = tomllib.loads(scene_to_toml(load_scene("smoke")))
+
+
+def toml_text(data: dict) -> str:
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        return f'"{v}"' if isinstance(v, str) else repr(v)
+
+    lines = []
+    for section, table in data.items():
+        if not isinstance(table, dict):
+            lines.append(f"{section} = {value(table)}")
+            continue
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def smoke_with(**changes) -> str:
+    """The smoke scene as TOML with ``section={"key": value}`` changes (None deletes a key)."""
+    data = {name: dict(table) for name, table in SMOKE.items()}
+    for section, keys in changes.items():
+        if not isinstance(keys, dict):
+            data[section] = keys
+            continue
+        table = data.setdefault(section, {})
+        for key, v in keys.items():
+            table.pop(key) if v is None else table.__setitem__(key, v)
+    return toml_text(data)
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    entry: str  # dem | protocol | tiv | bridge
+    argv: tuple[str, ...]
+    words: tuple[str, ...]
+    scene: str | None = None  # written to {scene}
+    setup: Callable[[Path], None] | None = field(default=None, compare=False)
+    code: int = 2
+
+
+def used_directory(tmp: Path) -> None:
+    (tmp / "out").mkdir()
+    (tmp / "out" / "history.nc").write_text("an earlier run")
+
+
+def a_file_as_out(tmp: Path) -> None:
+    (tmp / "out").write_text("not a folder")
+
+
+def a_run_of_another_scene(tmp: Path) -> None:
+    from dem_taichi.io.checkpoint import checkpoint_path, save_checkpoint
+    from dem_taichi.io.run_directory import start_run
+
+    other = scene_to_toml(load_scene("smoke").replace(scene={"seed": 9}))
+    run = start_run(tmp / "out", "run", "smoke", other)
+    path = checkpoint_path(run.checkpoint_dir, 500)
+    run.add_checkpoint(save_checkpoint(path, {"angle": np.zeros(1)}, {"scene_toml": other}))
+
+
+def a_folder(tmp: Path) -> None:
+    (tmp / "folder").mkdir()
+
+
+def text_files(tmp: Path) -> None:
+    (tmp / "notes.txt").write_text("not netCDF")
+
+
+def wrong_netcdf(tmp: Path) -> None:
+    xr.Dataset({"x": ("time", np.arange(3.0))}).to_netcdf(tmp / "wrong.nc")
+
+
+# the tables: one case a line
+# fmt: off
+RUN = ("run", "{scene}", "--out", "{out}")
+PROTOCOL = ("protocol", "{scene}", "--out", "{out}")
+
+DEM_CASES = [
+    Case("run-steps-negative", "dem", (*RUN, "--steps", "-5"), ("--steps", "-5 is out of range", ">= 0"), smoke_with()),  # noqa: E501
+    Case("run-steps-text", "dem", (*RUN, "--steps", "many"), ("--steps", "not an integer"), smoke_with()),  # noqa: E501
+    Case("run-arch", "dem", (*RUN, "--arch", "tpu"), ("--arch", "invalid choice", "cpu"), smoke_with()),  # noqa: E501
+    Case("run-precision", "dem", (*RUN, "--precision", "f16"), ("--precision", "f64"), smoke_with()),  # noqa: E501
+    Case("run-no-out", "dem", ("run", "smoke"), ("required", "--out")),
+    Case("run-no-scene", "dem", ("run",), ("required", "scene")),
+    Case("run-unknown-option", "dem", (*RUN, "--fast"), ("unrecognized arguments", "--fast"), smoke_with()),  # noqa: E501
+    Case("no-command", "dem", (), ("required", "command")),
+    Case("unknown-command", "dem", ("simulate", "smoke"), ("invalid choice", "run", "protocol")),
+    Case("scene-missing-file", "dem", ("run", "nothere.toml", "--out", "{out}"), ("nothere.toml", "does not exist", "built-in")),  # noqa: E501
+    Case("scene-unknown-builtin", "dem", ("run", "smok", "--out", "{out}"), ("no built-in scene 'smok'", "smoke")),  # noqa: E501
+    Case("scene-directory", "dem", ("run", "folder", "--out", "{out}"), ("is a directory",), setup=a_folder),  # noqa: E501
+    Case("scene-empty", "dem", RUN, ("is empty", "[particles]", "built-in scene"), ""),
+    Case("scene-comments-only", "dem", RUN, ("has no [particles] section",), "# nothing here\n"),
+    Case("scene-no-particles", "dem", RUN, ("has no [particles] section", "n_rods"), "[contact]\nk_n = 1e5\n"),  # noqa: E501
+    Case("scene-invalid-toml", "dem", RUN, ("invalid TOML",), "[particles\nn_rods = 4\n"),
+    Case("scene-unknown-section", "dem", RUN, ("unknown section(s) [partikles]", "allowed sections"), smoke_with(partikles={"n_rods": 4})),  # noqa: E501
+    Case("scene-unknown-key", "dem", RUN, ("[particles] unknown key(s) n_rod", "allowed keys"), smoke_with(particles={"n_rod": 4})),  # noqa: E501
+    Case("scene-section-not-table", "dem", RUN, ("[particles] must be a table",), "particles = 3\n"),  # noqa: E501
+    Case("scene-k_n-zero", "dem", RUN, ("[contact] k_n = 0.0 is out of range", "(0.0, inf)"), smoke_with(contact={"k_n": 0.0})),  # noqa: E501
+    Case("scene-n_rods-zero", "dem", RUN, ("[particles] n_rods = 0 is out of range",), smoke_with(particles={"n_rods": 0})),  # noqa: E501
+    Case("scene-n_rods-huge", "dem", RUN, ("n_rods", "out of range", "10000000"), smoke_with(particles={"n_rods": 10**9})),  # noqa: E501
+    Case("scene-n_rods-text", "dem", RUN, ("[particles] n_rods = 'forty'", "integer"), smoke_with(particles={"n_rods": "forty"})),  # noqa: E501
+    Case("scene-n_rods-float", "dem", RUN, ("n_rods = 40.5", "integer"), smoke_with(particles={"n_rods": 40.5})),  # noqa: E501
+    Case("scene-friction-text", "dem", RUN, ("[contact] friction", "true or false"), smoke_with(contact={"friction": "yes"})),  # noqa: E501
+    Case("scene-mu-negative", "dem", RUN, ("[contact] mu = -0.1 is out of range",), smoke_with(contact={"mu": -0.1})),  # noqa: E501
+    Case("scene-e_n-and-gamma_n", "dem", RUN, ("either e_n or gamma_n",), smoke_with(contact={"gamma_n": 1.0})),  # noqa: E501
+    Case("scene-e_n-above-one", "dem", RUN, ("[contact] e_n = 1.5 is out of range",), smoke_with(contact={"e_n": 1.5})),  # noqa: E501
+    Case("scene-overdamped", "dem", RUN, ("overdamped",), smoke_with(contact={"e_n": None, "gamma_n": 1e4})),  # noqa: E501
+    Case("scene-spacing", "dem", RUN, ("spacing = 1.5 > diameter", "touch"), smoke_with(particles={"spacing": 1.5})),  # noqa: E501
+    Case("scene-pattern", "dem", RUN, ("[long_range] pattern = 'salty'", "acidic | basic | neutral"), smoke_with(long_range={"pattern": "salty"})),  # noqa: E501
+    Case("scene-acidic-two-discs", "dem", RUN, ("acidic", "n_spheres >= 3"), smoke_with(particles={"n_spheres": 2})),  # noqa: E501
+    Case("scene-area-fraction", "dem", RUN, ("initial_area_fraction = 0.6 is out of range",), smoke_with(particles={"initial_area_fraction": 0.6})),  # noqa: E501
+    Case("scene-seed-negative", "dem", RUN, ("[scene] seed = -1 is out of range",), smoke_with(scene={"seed": -1})),  # noqa: E501
+    Case("scene-rod-model", "dem", RUN, ("rod_model = 'floppy'", "rigid | bonded"), smoke_with(particles={"rod_model": "floppy"})),  # noqa: E501
+    Case("scene-bonds-with-rigid", "dem", RUN, ("[bonds] is used only with", "rod_model = 'bonded'"), smoke_with(bonds={"bending": 0.3})),  # noqa: E501
+    Case("scene-bonded-one-disc", "dem", RUN, ("needs n_spheres >= 2",), smoke_with(particles={"rod_model": "bonded", "n_spheres": 1}, long_range={"enabled": False})),  # noqa: E501
+    Case("scene-bonded-dt", "dem", RUN, ("dt_safety = 0.45", "stability limit"), smoke_with(particles={"rod_model": "bonded"}, integration={"dt_safety": 0.45})),  # noqa: E501
+    Case("scene-dt_safety-range", "dem", RUN, ("[integration] dt_safety = 0.9 is out of range",), smoke_with(integration={"dt_safety": 0.9})),  # noqa: E501
+    Case("scene-execution", "dem", RUN, ("execution = 'fastest'", "serial"), smoke_with(integration={"execution": "fastest"})),  # noqa: E501
+    Case("scene-every-zero", "dem", RUN, ("[output] every = 0 is out of range",), smoke_with(output={"every": 0})),  # noqa: E501
+    Case("run-target-volume-above-gas", "dem", RUN, ("target_specific_volume = 9", "would not compress"), smoke_with(control={"target_specific_volume": 9.0})),  # noqa: E501
+    Case("run-cell-too-small", "dem", RUN, ("n_rods = 1", "cell of side", "more rods"), smoke_with(particles={"n_rods": 1})),  # noqa: E501
+    Case("run-used-directory", "dem", RUN, ("already holds", "--overwrite", "--resume"), smoke_with(), used_directory),  # noqa: E501
+    Case("run-out-is-a-file", "dem", RUN, ("is a file, not a directory",), smoke_with(), a_file_as_out),  # noqa: E501
+    Case("run-resume-and-overwrite", "dem", (*RUN, "--resume", "--overwrite"), ("exclude each other",), smoke_with()),  # noqa: E501
+    Case("run-resume-nothing", "dem", (*RUN, "--resume"), ("no run to continue", "without --resume"), smoke_with()),  # noqa: E501
+    Case("run-resume-other-scene", "dem", ("run", "smoke", "--out", "{out}", "--resume"), ("is not the scene of run", "scene.toml"), setup=a_run_of_another_scene),  # noqa: E501
+    Case("protocol-workers-zero", "dem", (*PROTOCOL, "--workers", "0"), ("--workers", "0 is out of range", ">= 1"), smoke_with()),  # noqa: E501
+    Case("protocol-workers-text", "dem", (*PROTOCOL, "--workers", "two"), ("--workers", "not an integer"), smoke_with()),  # noqa: E501
+    Case("protocol-pattern", "dem", (*PROTOCOL, "--pattern", "salty"), ("--pattern", "invalid choice", "acidic"), smoke_with()),  # noqa: E501
+    Case("protocol-no-out", "dem", ("protocol", "smoke"), ("required", "--out")),
+    Case("protocol-empty-scene", "dem", PROTOCOL, ("is empty",), ""),
+    Case("protocol-used-directory", "dem", PROTOCOL, ("already holds", "--overwrite"), smoke_with(), used_directory),  # noqa: E501
+    Case("protocol-out-is-a-file", "dem", PROTOCOL, ("is a file",), smoke_with(), a_file_as_out),
+    Case("protocol-unknown-key", "dem", PROTOCOL, ("[protocol] unknown key(s) target_stress",), smoke_with(protocol={"target_stress": 3.0})),  # noqa: E501
+    Case("protocol-target-negative", "dem", PROTOCOL, ("[protocol] target_mean_stress", "out of range"), smoke_with(protocol={"target_mean_stress": -1.0})),  # noqa: E501
+    Case("protocol-path-states", "dem", PROTOCOL, ("save_path_states = true needs save_states",), smoke_with(protocol={"save_path_states": True, "save_states": False})),  # noqa: E501
+    Case("protocol-probing-key", "dem", PROTOCOL, ("[probing] unknown key(s)",), smoke_with(probing={"amplitude": 1e-6})),  # noqa: E501
+    Case("protocol-module-no-scene", "protocol", ("--out", "{out}"), ("required", "scene")),
+    Case("protocol-module-empty-scene", "protocol", ("{scene}", "--out", "{out}"), ("is empty",), ""),  # noqa: E501
+]
+
+K0 = ("k0", "--sigma-v-max", "50", "--out", "{out}.nc")
+TIV_CASES = [
+    Case("tiv-k0-below-p0", "tiv", ("k0", "--sigma-v-max", "3", "--out", "x.nc"), ("--sigma-v-max 3 must be greater than --p0 5", "unload")),  # noqa: E501
+    Case("tiv-isotropic-at-p0", "tiv", ("isotropic", "--p-max", "5", "--out", "x.nc"), ("--p-max 5 must be greater than --p0",)),  # noqa: E501
+    Case("tiv-unload-below-p0", "tiv", ("unload", "--sigma-v-max", "4", "--out", "x.nc"), ("--sigma-v-max 4", "greater than --p0", "loads K0")),  # noqa: E501
+    Case("tiv-radial-below-p0", "tiv", ("radial", "--eta", "0.3", "--p-max", "2", "--out", "x.nc"), ("--p-max 2", "greater than --p0")),  # noqa: E501
+    Case("tiv-radial-eta-above-M", "tiv", ("radial", "--eta", "1.2", "--p-max", "100", "--out", "x.nc"), ("--eta 1.2", "|eta| < M = 1.1")),  # noqa: E501
+    Case("tiv-radial-eta-at-minus-M", "tiv", ("radial", "--eta", "-1.1", "--p-max", "100", "--out", "x.nc"), ("|eta| < M",)),  # noqa: E501
+    Case("tiv-radial-eta-own-M", "tiv", ("radial", "--eta", "0.6", "--p-max", "100", "--param", "M=0.5", "--out", "x.nc"), ("M = 0.5",)),  # noqa: E501
+    Case("tiv-radial-eta-nan", "tiv", ("radial", "--eta", "nan", "--p-max", "100", "--out", "x.nc"), ("--eta nan", "not allowed")),  # noqa: E501
+    Case("tiv-increments-zero", "tiv", (*K0, "--increments", "0"), ("--increments", "0 is out of range", "from 1 to 100,000")),  # noqa: E501
+    Case("tiv-increments-huge", "tiv", (*K0, "--increments", "1000000000"), ("1,000,000,000 is out of range", "0.3 GB", "tiv_model.drivers")),  # noqa: E501
+    Case("tiv-increments-text", "tiv", (*K0, "--increments", "ten"), ("--increments", "not an integer")),  # noqa: E501
+    Case("tiv-unload-increments", "tiv", ("unload", "--sigma-v-max", "50", "--unload-increments", "-2", "--out", "x.nc"), ("--unload-increments", "out of range")),  # noqa: E501
+    Case("tiv-p0-negative", "tiv", (*K0, "--p0", "-1"), ("--p0", "-1 is not allowed", "> 0")),
+    Case("tiv-p0-nan", "tiv", (*K0, "--p0", "nan"), ("--p0", "nan is not allowed")),
+    Case("tiv-p-max-inf", "tiv", ("isotropic", "--p-max", "inf", "--out", "x.nc"), ("--p-max", "inf is not allowed", "finite")),  # noqa: E501
+    Case("tiv-p-max-text", "tiv", ("isotropic", "--p-max", "abc", "--out", "x.nc"), ("--p-max", "'abc' is not a number")),  # noqa: E501
+    Case("tiv-param-unknown", "tiv", (*K0, "--param", "bogus=1"), ("unknown symbol 'bogus'", "lambda_star")),  # noqa: E501
+    Case("tiv-param-range", "tiv", (*K0, "--param", "n=1.0"), ("(n, ", "= 1.0 is not allowed", "0 ≤ n < 1")),  # noqa: E501
+    Case("tiv-param-no-equals", "tiv", (*K0, "--param", "z"), ("--param 'z'", "SYMBOL=VALUE")),
+    Case("tiv-param-not-number", "tiv", (*K0, "--param", "n=abc"), ("'abc' is not a number",)),
+    Case("tiv-anisotropy", "tiv", (*K0, "--anisotropy", "C"), ("--anisotropy", "invalid choice", "'A'")),  # noqa: E501
+    Case("tiv-bound-law", "tiv", (*K0, "--bound-law", "linear"), ("--bound-law", "invalid choice")),  # noqa: E501
+    Case("tiv-no-out", "tiv", ("k0", "--sigma-v-max", "50"), ("required", "--out")),
+    Case("tiv-no-command", "tiv", (), ("required", "command")),
+    Case("tiv-unknown-command", "tiv", ("triaxial",), ("invalid choice", "k0")),
+    Case("tiv-out-is-a-folder", "tiv", ("k0", "--sigma-v-max", "50", "--out", "folder"), ("--out folder is a folder", "netCDF file"), setup=a_folder),  # noqa: E501
+    Case("tiv-out-below-a-file", "tiv", ("k0", "--sigma-v-max", "50", "--out", "notes.txt/k0.nc"), ("is a file, not a folder",), setup=text_files),  # noqa: E501
+    Case("tiv-probe-p-zero", "tiv", ("probe", "--p", "0"), ("--p", "0 is not allowed")),
+    Case("tiv-unknown-option", "tiv", (*K0, "--steps", "3"), ("unrecognized arguments", "--steps")),  # noqa: E501
+]
+
+BRIDGE_CASES = [
+    Case("bridge-no-history", "bridge", ("--out", "{out}"), ("--history is required", "--synthetic")),  # noqa: E501
+    Case("bridge-history-missing", "bridge", ("--history", "none.nc", "--out", "{out}"), ("--history none.nc", "no such file")),  # noqa: E501
+    Case("bridge-history-folder", "bridge", ("--history", "folder", "--out", "{out}"), ("is a folder",), setup=a_folder),  # noqa: E501
+    Case("bridge-history-not-netcdf", "bridge", ("--history", "notes.txt", "--out", "{out}"), ("cannot read history file", "notes.txt"), setup=text_files),  # noqa: E501
+    Case("bridge-history-wrong-variables", "bridge", ("--history", "wrong.nc", "--out", "{out}", "--stress-scale", "1"), ("no loading path could be read", "lacks variable(s)", "stress_xx"), setup=wrong_netcdf),  # noqa: E501
+    Case("bridge-history-no-scale", "bridge", ("--history", "wrong.nc", "--out", "{out}"), ("no stress scale", "--stress-scale"), setup=wrong_netcdf),  # noqa: E501
+    Case("bridge-probes-missing", "bridge", ("--history", "wrong.nc", "--probes", "p.nc", "--out", "{out}"), ("--probes p.nc", "no such file"), setup=wrong_netcdf),  # noqa: E501
+    Case("bridge-stress-scale-zero", "bridge", ("--synthetic", "--out", "{out}", "--stress-scale", "0"), ("--stress-scale", "0 is not allowed", "> 0")),  # noqa: E501
+    Case("bridge-stress-scale-negative", "bridge", ("--synthetic", "--out", "{out}", "--stress-scale", "-3"), ("--stress-scale", "not allowed")),  # noqa: E501
+    Case("bridge-noise-negative", "bridge", ("--synthetic", "--out", "{out}", "--noise", "-1"), ("--noise", ">= 0")),  # noqa: E501
+    Case("bridge-fabric-scale", "bridge", ("--synthetic", "--out", "{out}", "--fabric-scale", "0"), ("--fabric-scale", "not allowed")),  # noqa: E501
+    Case("bridge-reference-pressure", "bridge", ("--synthetic", "--out", "{out}", "--reference-pressure", "nan"), ("--reference-pressure", "nan is not allowed")),  # noqa: E501
+    Case("bridge-passes-zero", "bridge", ("--synthetic", "--out", "{out}", "--passes", "0"), ("--passes", "out of range")),  # noqa: E501
+    Case("bridge-k0-increments", "bridge", ("--synthetic", "--out", "{out}", "--max-k0-increments", "0"), ("--max-k0-increments", "out of range")),  # noqa: E501
+    Case("bridge-fix-unknown", "bridge", ("--synthetic", "--out", "{out}", "--fix", "bogus"), ("--fix bogus", "unknown symbol", "lambda_star")),  # noqa: E501
+    Case("bridge-convention", "bridge", ("--synthetic", "--out", "{out}", "--convention", "cubic"), ("--convention", "invalid choice", "triaxial")),  # noqa: E501
+    Case("bridge-probe-method", "bridge", ("--synthetic", "--out", "{out}", "--probe-method", "static"), ("--probe-method", "invalid choice")),  # noqa: E501
+    Case("bridge-stages", "bridge", ("--synthetic", "--out", "{out}", "--stages", "nosuch"), ("--stages", "invalid choice")),  # noqa: E501
+    Case("bridge-synthetic-and-history", "bridge", ("--synthetic", "--history", "h.nc", "--out", "{out}"), ("--synthetic makes its own inputs",)),  # noqa: E501
+    Case("bridge-out-is-a-file", "bridge", ("--synthetic", "--out", "notes.txt"), ("--out notes.txt is a file",), setup=text_files),  # noqa: E501
+    Case("bridge-unknown-option", "bridge", ("--synthetic", "--out", "{out}", "--fast"), ("unrecognized arguments",)),  # noqa: E501
+]
+
+# fmt: on
+CASES = DEM_CASES + TIV_CASES + BRIDGE_CASES
+
+
+def entry(name: str):
+    if name == "dem":
+        from dem_taichi.cli import main
+    elif name == "protocol":
+        from dem_taichi.protocol import main
+    elif name == "tiv":
+        from tiv_model.cli import main
+    else:
+        from bridge.pipeline import main
+    return main
+
+
+def test_there_are_at_least_eighty_cases():
+    assert len(CASES) >= 80
+    assert len({case.id for case in CASES}) == len(CASES)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[case.id for case in CASES])
+def test_bad_input_is_one_clear_line(case, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    if case.scene is not None:
+        (tmp_path / "scene.toml").write_text(case.scene)
+    if case.setup is not None:
+        case.setup(tmp_path)
+    argv = [a.replace("{scene}", "scene.toml").replace("{out}", "out") for a in case.argv]
+    code = entry(case.entry)(argv)
+    out, err = capsys.readouterr()
+    assert code == case.code, err
+    assert "Traceback" not in out + err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert ": error: " in lines[0]
+    for words in case.words:
+        assert words in lines[0], (words, lines[0])
+
+
+def test_debug_shows_the_error_itself(tmp_path, monkeypatch):
+    from dem_taichi.cli import main
+    from dem_taichi.config import SceneError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scene.toml").write_text("")
+    with pytest.raises(SceneError, match="is empty"):
+        main(["run", "scene.toml", "--out", "out", "--debug"])
+
+
+@pytest.mark.parametrize(
+    "command, words",
+    [
+        (["dem_taichi", "run", "scene.toml", "--out", "o"], "is empty"),
+        (["dem_taichi", "protocol", "scene.toml", "--out", "o", "--quiet"], "is empty"),
+        (["dem_taichi.protocol", "scene.toml", "--out", "o"], "is empty"),
+        (["tiv_model", "k0", "--sigma-v-max", "1", "--out", "k0.nc"], "greater than --p0"),
+        (["bridge.pipeline", "--history", "none.nc", "--out", "b"], "no such file"),
+    ],
+)
+def test_the_real_command_lines(command, words, tmp_path):
+    (tmp_path / "scene.toml").write_text("")
+    env_python = [sys.executable, "-m", *command]
+    result = subprocess.run(env_python, cwd=tmp_path, capture_output=True, text=True)
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and words in result.stderr
+    debug = subprocess.run([*env_python, "--debug"], cwd=tmp_path, capture_output=True, text=True)
+    assert debug.returncode != 0 and "Traceback" in debug.stderr
