@@ -64,13 +64,15 @@ def _baseline(revision: str, dem: str) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--dem", nargs="+", required=True, help="DEM result folders")
+    parser.add_argument("--dem", nargs="+", default=[], help="DEM result folders")
     parser.add_argument("--baseline", default=None, help="git revision to compare with")
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
         print(json.dumps(measure(args.worker, identifiability=False)))
         return 0
+    if not args.dem:
+        parser.error("give --dem DIR [DIR ...]")
     lines = ["# Calibration time on DEM results", "",
              f"Baseline revision: {args.baseline or 'none'}; wall-clock seconds on a shared "
              "2-core machine (other jobs running: compare the columns of one row, not rows).",

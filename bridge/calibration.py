@@ -277,6 +277,10 @@ class _Fabric(_Stage):
 # ---------------------------------------------------------------------------------------------
 # the optimiser
 # ---------------------------------------------------------------------------------------------
+#: evaluations after which a dogbox fit that has not converged continues with trf
+SWITCH_EVALUATIONS = 60
+
+
 def _fit_stage(
     stage: _Stage, params: Parameters, free: tuple[str, ...], options: CalibrationOptions
 ) -> tuple[Parameters, StageFit]:
@@ -335,18 +339,35 @@ def _fit_stage(
         return res
 
     diff_step = 1e-6 if stage.name == "fabric" else None
-    sol = least_squares(
-        residuals,
-        x0,
-        bounds=(lo, hi),
-        x_scale="jac",
-        method=options.method,
-        diff_step=diff_step,
-        xtol=options.tolerance,
-        ftol=options.tolerance,
-        gtol=options.tolerance,
-        max_nfev=options.max_evaluations or 200 * (len(free) + 1),
-    )
+    budget = options.max_evaluations or 200 * (len(free) + 1)
+
+    def solve(start, method, max_nfev):
+        return least_squares(
+            residuals,
+            start,
+            bounds=(lo, hi),
+            x_scale="jac",
+            method=method,
+            diff_step=diff_step,
+            xtol=options.tolerance,
+            ftol=options.cost_tolerance,
+            gtol=options.tolerance,
+            max_nfev=max_nfev,
+        )
+
+    if options.method == "dogbox" and budget > SWITCH_EVALUATIONS:
+        # dogbox reaches a bound in few steps (the demo's z = 1) but can creep along a flat
+        # valley (the paper scene's c–s–z); trf, the other way round: when dogbox has not
+        # converged after SWITCH_EVALUATIONS, trf continues from where it is
+        sol = solve(x0, "dogbox", SWITCH_EVALUATIONS)
+        if sol.status == 0:
+            first = sol
+            sol = solve(np.clip(sol.x, lo, hi), "trf", budget - SWITCH_EVALUATIONS)
+            sol.nfev += first.nfev
+            if first.cost < sol.cost:  # keep the better of the two
+                sol = first
+    else:
+        sol = solve(x0, options.method, budget)
     final = residuals(sol.x)
     if np.all(final == options.penalty):
         raise CalibrationError(

@@ -291,7 +291,10 @@ def identifiability(
 
     t0 = time.perf_counter()
     options = dataclasses.replace(
-        result.options, tolerance=PROFILE_TOLERANCE, max_evaluations=PROFILE_EVALUATIONS
+        result.options,
+        tolerance=PROFILE_TOLERANCE,
+        cost_tolerance=max(PROFILE_TOLERANCE, result.options.cost_tolerance),
+        max_evaluations=PROFILE_EVALUATIONS,
     )
     names = tuple(st.name for st in result.stages_) if stages is None else stages
     built = build_stages(series, probes, options, tuple(s for s in STAGES if s in names))

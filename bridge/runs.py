@@ -26,7 +26,7 @@ import numpy as np
 from tiv_model.drivers import record, run_path
 from tiv_model.errors import TivModelError
 from tiv_model.integrate import Control, initial_state
-from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters
+from tiv_model.params import DEFAULT_OPTIONS, ModelOptions, Parameters, SolverSettings
 from tiv_model.state import IncrementGuess, State
 
 #: Names of the per-point results (tiv_model.drivers.VARIABLES subset).
@@ -72,7 +72,15 @@ def _interpolate(results, used: np.ndarray, n_points: int, coordinate: np.ndarra
 class WarmStart:
     """Starting values for repeated runs of one path with nearby parameters (a calibration's
     evaluations and finite differences): the increments of the last run
-    (:class:`tiv_model.state.IncrementGuess`), used only as the Newton's starting points."""
+    (:class:`tiv_model.state.IncrementGuess`), used only as the Newton's starting points.
+
+    Started next to the solution, the Newton stops at the first iterate below its tolerance,
+    so a warm run differs from a cold one by up to that tolerance; the runs use a tolerance
+    100× tighter (``settings``) so that the optimiser's finite differences (steps 1e-6) do not
+    see it (with the default tolerance the paper scene's fabric stage wandered for 1000
+    evaluations instead of stopping at 60)."""
+
+    settings = SolverSettings(tolerance=1e-13)
 
     def __init__(self) -> None:
         self.guesses: list[IncrementGuess] | None = None
@@ -83,6 +91,8 @@ class WarmStart:
 
 
 def _run(start: State, controls, params, options, settings=None, warm: WarmStart | None = None):
+    if settings is None and warm is not None:
+        settings = warm.settings
     kwargs = {} if settings is None else {"settings": settings}
     guesses = warm.guesses if warm is not None else None
     states, term = run_path(start, controls, params, options, on_error="raise",
