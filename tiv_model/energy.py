@@ -198,23 +198,40 @@ _DIAGONAL = (np.arange(6), np.arange(6))
 
 
 def _stiffness_block(eps, volume, beta, params, options, out) -> None:
-    """D of a block of points ``(n, 6)`` written into ``out`` ``(n, 6, 6)``."""
+    """D of a block of points ``(n, 6)`` written into ``out`` ``(n, 6, 6)``.
+
+    Form "B" has P = I − ω β⊗β, so Pε, Pc, P1 and PP = I + (ω²β:β − 2ω) β⊗β are written out
+    (no 6×6 products); form "A" forms P."""
     a = energy_exponent(params)
     lam = params.k * (1.0 - params.n) - 2.0 * params.g / 3.0
     g2 = 2.0 * params.g
-    pmat = _mapping_block(beta, params, options)
-    mapped = (pmat @ eps[:, :, None])[:, :, 0]
+    om = params.omega
+    form_b = options.anisotropy == "B"
+    if form_b:
+        mapped = eps - (om * np.sum(beta * eps, axis=1))[:, None] * beta
+    else:
+        pmat = _mapping_block(beta, params, options)
+        mapped = (pmat @ eps[:, :, None])[:, :, 0]
     c_eps = g2 * mapped
     c_eps[:, :3] += (lam * (mapped[:, 0] + mapped[:, 1] + mapped[:, 2]))[:, None]
     quad = np.maximum(np.sum(mapped * c_eps, axis=1), _TINY_Q)
     ln_scale = log_energy_constant(params) + (a - 2.0) * np.log(quad)
     scale = a * volume_factor(volume, params) * np.exp(ln_scale)
-    p_c = (pmat @ c_eps[:, :, None])[:, :, 0]
-    p_one = pmat[:, :, 0] + pmat[:, :, 1] + pmat[:, :, 2]
+    if form_b:
+        p_c = c_eps - (om * np.sum(beta * c_eps, axis=1))[:, None] * beta
+        p_one = IDENTITY_MANDEL - (om * (beta[:, 0] + beta[:, 1] + beta[:, 2]))[:, None] * beta
+    else:
+        p_c = (pmat @ c_eps[:, :, None])[:, :, 0]
+        p_one = pmat[:, :, 0] + pmat[:, :, 1] + pmat[:, :, 2]
     np.multiply((4.0 * (a - 1.0) * scale)[:, None, None] * p_c[:, :, None], p_c[:, None, :], out)
     s2 = 2.0 * scale * quad
     out += (s2 * lam)[:, None, None] * p_one[:, :, None] * p_one[:, None, :]
-    out += (s2 * g2)[:, None, None] * (pmat @ pmat)
+    if form_b:
+        kappa = om * om * np.sum(beta * beta, axis=1) - 2.0 * om
+        out += (s2 * g2 * kappa)[:, None, None] * beta[:, :, None] * beta[:, None, :]
+        out[:, _DIAGONAL[0], _DIAGONAL[1]] += (s2 * g2)[:, None]
+    else:
+        out += (s2 * g2)[:, None, None] * (pmat @ pmat)
 
 
 def _mapping_block(beta, params, options) -> np.ndarray:

@@ -245,8 +245,8 @@ def _finite_difference_steps(x: np.ndarray, strain_scale: float) -> np.ndarray:
     return 1e-7 * np.maximum(np.abs(x), typical)
 
 
-def _local_solve(state: State, strain_increment, params, options, settings):
-    """One backward-Euler increment; returns (new state, algorithmic tangent 6×6)."""
+def _local_solve(state: State, strain_increment, params, options, settings, need_tangent=True):
+    """One backward-Euler increment; returns (new state, algorithmic tangent 6×6 or None)."""
     deps = np.asarray(strain_increment, dtype=float)
     trial = state.elastic_strain + deps
     v_n = state.specific_volume
@@ -272,7 +272,8 @@ def _local_solve(state: State, strain_increment, params, options, settings):
             dissipated_energy=state.dissipated_energy,
             plastic=False,
         )
-        return new, stiffness(trial, v_n, state.fabric, params, options)
+        tangent = stiffness(trial, v_n, state.fabric, params, options) if need_tangent else None
+        return new, tangent
 
     strain_scale = max(float(np.max(np.abs(trial))), float(np.max(np.abs(deps))), 1e-14)
     problem = LocalProblem(trial, state.fabric, math.log(v_n), params, options, strain_scale)
@@ -346,14 +347,16 @@ def _local_solve(state: State, strain_increment, params, options, settings):
     pc = float(ye.preconsolidation)
     dep = (mu / pc) * ye.flow
     d_inc = float(dissipation_rate(dep, beta, pc, params))
-    if analytic:  # the exact Jacobian at the converged point
+    tangent = None
+    if need_tangent and analytic:  # the exact Jacobian at the converged point
         with np.errstate(all="ignore"):
             out = problem.evaluate_jacobian(x[None])
         jac, dsig = out[3][0], out[4][0]
-    try:
-        tangent = dsig @ np.linalg.solve(jac, np.eye(_SIZE)[:, :6])
-    except np.linalg.LinAlgError:
-        tangent = stiffness(eps, v, beta, params, options)
+    if need_tangent:
+        try:
+            tangent = dsig @ np.linalg.solve(jac, np.eye(_SIZE)[:, :6])
+        except np.linalg.LinAlgError:
+            tangent = stiffness(eps, v, beta, params, options)
     new = State(
         strain=state.strain + deps,
         elastic_strain=eps,
@@ -376,7 +379,7 @@ def _mixed_step(state: State, control: Control, params, options, settings, guess
     deps = np.where(mask, 0.0, np.asarray(control.strain_increment, dtype=float))
     if not np.any(mask):
         # halving is done by ``advance``; nesting it here too would cost 2^(2k) solves
-        return _local_solve(state, deps, params, options, settings)[0]
+        return _local_solve(state, deps, params, options, settings, need_tangent=False)[0]
     target = np.asarray(control.stress_target, dtype=float)
     u = np.flatnonzero(mask)
     kn = np.flatnonzero(~mask)
