@@ -1,4 +1,7 @@
-"""Command line: ``python -m dem_taichi run|protocol SCENE --out DIR [options]``.
+"""Command line: ``python -m dem_taichi run|protocol|sweep ... [options]``.
+
+``run`` and ``protocol`` take ``SCENE --out DIR``; ``sweep SWEEP.toml --out DIR`` runs protocol
+members on Dask (:mod:`dem_taichi.sweep`).
 
 ``protocol`` runs the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial paths) with
 elastic probes, figures and a report; it takes the options of ``python -m dem_taichi.protocol``
@@ -286,6 +289,12 @@ def _parser() -> ArgumentParser:
         help="the study's virtual experiments with probes, figures and a report "
         "(python -m dem_taichi protocol --help)",
     )
+    sub.add_parser(
+        "sweep",
+        add_help=False,
+        help="protocol runs over a grid or list of scene changes, on Dask "
+        "(python -m dem_taichi sweep --help)",
+    )
     return parser
 
 
@@ -295,7 +304,7 @@ def _command(argv: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m dem_taichi run|protocol ...``; returns the exit code (module docstring)."""
+    """``python -m dem_taichi run|protocol|sweep ...``; returns the exit code (module docstring)."""
     from dem_taichi.failures import BlowUpError, CapacityError
     from dem_taichi.io import CheckpointError
 
@@ -306,6 +315,10 @@ def main(argv: list[str] | None = None) -> int:
         from dem_taichi.protocol import main as protocol_main
 
         return protocol_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} protocol")
+    if first < len(argv) and argv[first] == "sweep":
+        from dem_taichi.sweep import main as sweep_main
+
+        return sweep_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} sweep")
     return run_command(
         PROG,
         _command,

@@ -48,3 +48,11 @@ def test_default_scene_runs_to_its_target(tmp_path):
         scene.control.target_specific_volume, rel=1e-3
     )
     assert float(history["coordination_number"][-1]) > 1.0
+
+
+def test_sweep_is_a_subcommand(capsys):
+    """``python -m dem_taichi sweep`` hands over to dem_taichi.sweep (its own help and prog)."""
+    from dem_taichi.cli import main
+
+    assert main(["sweep", "--help"]) == 0
+    assert "python -m dem_taichi sweep" in capsys.readouterr().out
