@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from dem_taichi.analysis import Transition, detect_transition
+from dem_taichi.io.vtk_snapshots import simulation_snapshot
 from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
@@ -166,6 +167,7 @@ class ProtocolRunner:
             log.states[label] = state
             sim = self.sim
             log.configurations[label] = (sim.rod_positions(), sim.rod_angles(), sim.cell_lengths)
+            log.snapshots[label] = simulation_snapshot(sim)
             if self.config.save_states and self.out_dir is not None:
                 path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
                 log.checkpoints[label] = str(sim.save_checkpoint(path))

@@ -31,7 +31,9 @@ checks: every history record carries the inertial number and the UFR, and
 
 Outputs in ``out_dir``: ``history.nc`` (every loading output step and every relaxed state),
 ``relaxed_states.nc`` (one record per relaxed path state, same schema), ``probes.nc``,
-``configuration_<label>.nc`` at A, B, C, B', R<k>_end, ``figure_paths.png`` (study Figure 1),
+``configuration_<label>.nc`` at A, B, C, B', R<k>_end, ``paraview/state_<label>.vtu`` (the
+discs at those states, :mod:`dem_taichi.io.vtk_snapshots`) with ``paraview/states.pvd``,
+``figure_paths.png`` (study Figure 1),
 ``figure_states.png`` (study Figure 2), ``report.md`` and ``summary.json``.
 
 Symbols: σ stress (force/length, compression positive), p = (σ_xx+σ_yy)/2, q = σ_yy − σ_xx,
@@ -240,6 +242,9 @@ def run_protocol(
             },
         )
         result.files[f"configuration_{label}"] = str(path)
+    _write_paraview(out, log)
+    if log.snapshots:
+        result.files["paraview"] = str(out / "paraview" / "states.pvd")
     if log.probes:
         probe_attrs = dict(attrs, title="DEM elastic probes at states of the loading paths")
         ds = probes_dataset(log.probes, recorder.amplitudes, probing, probe_attrs)
@@ -251,6 +256,27 @@ def run_protocol(
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
     result.files["summary"] = str(out / "summary.json")
     return result
+
+
+def _write_paraview(out: Path, log: RunLog) -> None:
+    """The labelled states' discs as ParaView files: ``paraview/state_<label>.vtu`` and the
+    series ``paraview/states.pvd`` in the order the states were reached (meshio needed)."""
+    if not log.snapshots:
+        return
+    from dem_taichi.io.vtk_snapshots import write_pvd, write_snapshot
+
+    folder = out / "paraview"
+    files = []
+    for label, state in log.states.items():
+        if label not in log.snapshots:
+            continue
+        m = state.measures
+        fields = {k: float(m[k]) for k in ("mean_stress", "deviatoric_stress", "specific_volume")}
+        path = folder / f"state_{_file_label(label)}.vtu"
+        files.append(
+            (label, write_snapshot(path, **log.snapshots[label], stage=state.stage, fields=fields))
+        )
+    write_pvd(folder / "states.pvd", files)
 
 
 def _write_figures_and_report(result: ProtocolResult, sim) -> None:

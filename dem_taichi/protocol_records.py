@@ -88,7 +88,8 @@ class RunLog:
     ``stages`` stage label → :class:`StageRecord`; ``states`` labelled relaxed states (A, B, C,
     B', R<k>_end) in the order reached; ``path_states`` every relaxed path state in order;
     ``configurations`` label → (rod positions, rod angles, cell lengths) when the state was
-    reached; ``checkpoints`` name → path of the saved state files; ``probes`` the
+    reached; ``snapshots`` label → the discs then (``vtk_snapshots.simulation_snapshot``, for
+    the ParaView files); ``checkpoints`` name → path of the saved state files; ``probes`` the
     :class:`dem_taichi.probing.ProbeResult` of every probed state in order, with the probing
     wall times (total, dynamic sweeps, linear responses, per stage); ``transition`` and
     ``transition_details`` the fluid–solid transition (state A) and how it was found.
@@ -100,6 +101,7 @@ class RunLog:
     configurations: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
         default_factory=dict
     )
+    snapshots: dict[str, dict] = field(default_factory=dict)
     checkpoints: dict[str, str] = field(default_factory=dict)
     probes: list = field(default_factory=list)
     probing_seconds: float = 0.0
@@ -121,6 +123,7 @@ class RunLog:
         self.states.update(branch.states)
         self.stages.update(branch.stages)
         self.configurations.update(branch.configurations)
+        self.snapshots.update(branch.snapshots)
         self.checkpoints.update(branch.checkpoints)
         self.probes.extend(branch.probes)
         self.probing_seconds += branch.probing_seconds

@@ -177,6 +177,35 @@ def test_outputs_written_with_schema(run, tmp_path):
     assert "error" not in " ".join(run.files)
 
 
+def test_paraview_snapshots_at_the_labelled_states(run):
+    """paraview/states.pvd lists one snapshot per labelled state, in the order reached; each is
+    read by meshio with the discs of the state's configuration and the state's stage."""
+    meshio = pytest.importorskip("meshio")
+    from dem_taichi.io.vtk_snapshots import read_pvd
+
+    entries = read_pvd(run.files["paraview"])
+    assert [label for label, _ in entries] == list(run.states)
+    for label, path in entries:
+        mesh = meshio.read(path)
+        conf = open_configuration(run.files[f"configuration_{label}"])
+        n_s = int(conf.attrs["n_spheres"])
+        assert mesh.points.shape == (conf.sizes["rod"] * n_s, 3)
+        angles = mesh.point_data["angle"][::n_s]
+        np.testing.assert_array_equal(angles, conf["rod_angle"].values)
+        # the discs sit about their rod's centroid (modulo the cell)
+        lengths = mesh.field_data["cell_lengths"].ravel()
+        np.testing.assert_array_equal(lengths, conf["cell_lengths"].values)
+        centre = mesh.points[:, :2].reshape(-1, n_s, 2).mean(axis=1)
+        d = centre - conf["rod_position"].values
+        np.testing.assert_allclose(d - lengths * np.round(d / lengths), 0.0, atol=1e-9)
+        state = run.states[label]
+        assert int(mesh.field_data["stage_code"].ravel()[0]) == stage_code(state.stage)
+        assert int(mesh.field_data["step"].ravel()[0]) == int(state.measures["step"])
+        assert float(mesh.field_data["mean_stress"].ravel()[0]) == pytest.approx(
+            state.measures["mean_stress"]
+        )
+
+
 def test_protocol_servo_holds_targets_on_the_engine(run):
     """The protocol's servo, the only one (the engine's was removed in issue 9 and its test
     moved here), on the engine from A: both axes to σ = 1.3 p_A, then mixed control (x held,
