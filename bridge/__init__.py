@@ -7,6 +7,9 @@ without Taichi. Modules, in the order of the pipeline:
   unloading C→B) with a stated, switchable 2D → 3D convention (``"triaxial"`` default,
   ``"plane"``), an explicit stress scale (kPa per DEM unit) and fabric sign/scale
   (β_model = −F (β_yy − β_xx)); the inverse writes DEM-schema datasets of model runs;
+- :mod:`bridge.units` — the units of every variable read from a results file, parsed with
+  pint: DEM units (``"1"`` + ``dem_units``) or a pressure unit for stresses and moduli,
+  dimensionless for v and fabric; anything else (or no ``units``) refused naming it;
 - :mod:`bridge.moduli` — the model's elastic moduli at measured states (batched inversion);
 - :mod:`bridge.runs` — model runs along the DEM paths, sampled at the DEM points;
 - :mod:`bridge.calibration` — staged least squares (compressibility λ*, N; elastic k, g, n, r,

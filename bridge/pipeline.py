@@ -12,7 +12,8 @@ History file: the series need relaxed path states. The protocol writes them to
 
 Stress scale: ``PipelineOptions.stress_scale_kpa``; when None it is read from the history's
 global attribute ``stress_scale_kpa`` (written by the DEM protocol), and the report says so; a
-file without it and no option fails.
+file without it and no option fails, unless every stress and modulus read has a pressure unit
+(then no scale is needed: :mod:`bridge.units`).
 
 Outputs in ``out_dir``: ``calibration.json`` (parameters, standard errors, stages, fit quality,
 what was fitted), ``calibration.txt`` (text report), ``prediction_<path>.nc`` (model runs) and
@@ -49,13 +50,16 @@ from .identifiability import identifiability
 from .predict import predict_paths, predict_probes, summary
 from .report import report_markdown, write_report
 from .series import (
+    HISTORY_REQUIRED,
     PATHS,
+    PROBES_REQUIRED,
     Convention,
     SeriesError,
     all_probe_series,
     history_series,
     radial_series,
 )
+from .units import in_dem_units
 
 PROG = "python -m bridge.pipeline"
 
@@ -126,14 +130,28 @@ def _open(path: Path, kind: str) -> xr.Dataset:
     return open_history(path) if kind == "history" else open_probes(path)
 
 
-def _stress_scale(options: PipelineOptions, history: xr.Dataset, path: Path) -> tuple[float, str]:
+def _stress_scale(
+    options: PipelineOptions, history: xr.Dataset, path: Path, probes: xr.Dataset | None = None
+) -> tuple[float, str]:
     if options.stress_scale_kpa is not None:
         return float(options.stress_scale_kpa), "given as an option"
     value = history.attrs.get("stress_scale_kpa")
+    method = options.probe_method
+    dem = []  # what needs the scale: stresses and moduli in DEM units
+    if names := in_dem_units(history, HISTORY_REQUIRED):
+        dem.append(f"history {', '.join(names)}")
+    if probes is not None:
+        moduli = (f"e_oed_v_{method}", f"e_oed_h_{method}", "stiffness_tensor_linear")
+        if names := in_dem_units(probes, PROBES_REQUIRED + moduli):
+            dem.append(f"probes {', '.join(names)}")
+    stresses = all(name in history.variables for name in ("stress_xx", "stress_yy"))
+    if value is None and stresses and not dem:
+        return 1.0, "not needed: every stress and modulus read has a pressure unit"
     if value is None:
         raise SeriesError(
-            f"no stress scale: {path} has no global attribute 'stress_scale_kpa'; give "
-            "PipelineOptions(stress_scale_kpa=...) (--stress-scale), kPa per DEM stress unit"
+            f"no stress scale: {path} has no global attribute 'stress_scale_kpa' and these "
+            f"are not in a pressure unit: {'; '.join(dem)}; give PipelineOptions("
+            "stress_scale_kpa=...) (--stress-scale), kPa per DEM stress unit"
         )
     return float(value), f"from the attribute stress_scale_kpa of {path.name}"
 
@@ -159,7 +177,8 @@ def calibrate_from_results(
     if options.prefer_relaxed_states and history_file.name == "history.nc" and sibling.exists():
         used_history = sibling
     history = _open(used_history, "history")
-    scale, scale_note = _stress_scale(options, history, used_history)
+    probes_data = None if probes_path is None else _open(Path(probes_path), "probes")
+    scale, scale_note = _stress_scale(options, history, used_history, probes_data)
     convention = Convention(scale, options.convention, options.fabric_scale)
     available, reasons = [], {}
     for path in PATHS:
@@ -180,10 +199,8 @@ def calibrate_from_results(
     series.update(radial_series(history, convention))  # radial_1, radial_2… (none: {})
     stages = tuple(options.stages)
     probes: dict[str, xr.Dataset] = {}
-    if probes_path is not None:
-        probes = all_probe_series(
-            _open(Path(probes_path), "probes"), convention, options.probe_method
-        )
+    if probes_data is not None:
+        probes = all_probe_series(probes_data, convention, options.probe_method)
     elif "elastic" in stages:
         stages = tuple(s for s in stages if s != "elastic")
     result = calibrate(series, probes, options.calibration, stages)

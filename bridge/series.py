@@ -34,6 +34,12 @@ Paths (DEM stage labels of ``dem_taichi.io.schema.STAGE_CODES``):
 * ``radial_1``, ``radial_2``…: state A then the records of each radial path (stage ``radial``;
   the paths are told apart where the mean stress falls back), :func:`radial_series`.
 
+Units: every variable read from a file passes :func:`bridge.units.checked` first: its
+``units`` attribute is parsed with pint; stresses and moduli in DEM units (``units = "1"`` with
+``dem_units = "force/length"``) are taken times S, those in a pressure unit (Pa, kPa, MPa, GPa…)
+converted to kPa; specific volume and fabric must be dimensionless; a missing, unknown or
+incompatible unit is refused naming the variable (:class:`bridge.units.UnitsError`).
+
 Symbols: σ stress (kPa in the model, DEM units in the files), p mean stress, q deviatoric
 stress, η = q/p, v specific volume (1; the DEM's A/A_solid is identified with the model's
 internal variable v, as in the study), β fabric (1), S stress scale (kPa per DEM stress unit),
@@ -47,6 +53,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
+
+from .units import checked
 
 #: The allowed 2D → 3D conventions.
 CONVENTIONS = ("triaxial", "plane")
@@ -264,6 +272,7 @@ def path_series(history: xr.Dataset, path: str, convention: Convention) -> xr.Da
     the full ``history.nc`` also the loading records in between).
     """
     _require(history, HISTORY_REQUIRED, "history")
+    history = checked(history, HISTORY_REQUIRED, convention.stress_scale_kpa, "history")
     idx = path_indices(history, path)
     dim = history["stress_xx"].dims[0]
 
@@ -320,6 +329,7 @@ def radial_series(history: xr.Dataset, convention: Convention) -> dict[str, xr.D
     in the order of the records, with their DEM and model stress ratios (of the last state)
     in the attributes ``dem_stress_ratio`` and ``stress_ratio``; {} when there are none."""
     _require(history, HISTORY_REQUIRED, "history")
+    history = checked(history, HISTORY_REQUIRED, convention.stress_scale_kpa, "history")
     dim = history["stress_xx"].dims[0]
     out = {}
     for k, idx in enumerate(radial_indices(history), start=1):
@@ -356,6 +366,8 @@ def probe_series(
         raise SeriesError(f"unknown path {path!r}; allowed: {sorted(PATHS)}")
     moduli = (f"e_oed_v_{method}", f"e_oed_h_{method}")
     _require(probes, PROBES_REQUIRED + moduli, "probes dataset")
+    read = PROBES_REQUIRED + moduli + ("stiffness_tensor_linear",)
+    probes = checked(probes, read, convention.stress_scale_kpa, "probes")
     labels = np.asarray(probes["path"].values, dtype=object).astype(str)
     state_labels = (
         np.asarray(probes["state_label"].values, dtype=object).astype(str)

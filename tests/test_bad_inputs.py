@@ -96,6 +96,36 @@ def wrong_netcdf(tmp: Path) -> None:
     xr.Dataset({"x": ("time", np.arange(3.0))}).to_netcdf(tmp / "wrong.nc")
 
 
+def synthetic_files(tmp: Path, name: str = "", **attrs) -> None:
+    """Small synthetic DEM results (history.nc, probes.nc) with ``attrs`` on variable ``name``
+    (None: attribute removed); for the units the bridge reads (issue 11)."""
+    from bridge.series import Convention
+    from bridge.synthetic import synthetic_results
+    from tiv_model.params import TABLE1
+
+    data = synthetic_results(
+        TABLE1, convention=Convention(50.0), increments=2, unloading_increments=1
+    )
+    for ds, kind in ((data.history, "history"), (data.probes, "probes")):
+        if name in ds.variables:
+            ds[name].attrs.update({k: v for k, v in attrs.items() if v is not None})
+            for key in (k for k, v in attrs.items() if v is None):
+                ds[name].attrs.pop(key, None)
+        ds.to_netcdf(tmp / f"{kind}.nc")
+
+
+def stress_in_metres(tmp: Path) -> None:
+    synthetic_files(tmp, "stress_yy", units="m", dem_units=None)
+
+
+def modulus_in_kilograms(tmp: Path) -> None:
+    synthetic_files(tmp, "e_oed_v_linear", units="kg", dem_units=None)
+
+
+def stress_without_units(tmp: Path) -> None:
+    synthetic_files(tmp, "stress_xx", units=None)
+
+
 # the tables: one case a line
 # fmt: off
 RUN = ("run", "{scene}", "--out", "{out}")
@@ -219,6 +249,9 @@ BRIDGE_CASES = [
     Case("bridge-stages", "bridge", ("--synthetic", "--out", "{out}", "--stages", "nosuch"), ("--stages", "invalid choice")),  # noqa: E501
     Case("bridge-synthetic-and-history", "bridge", ("--synthetic", "--history", "h.nc", "--out", "{out}"), ("--synthetic makes its own inputs",)),  # noqa: E501
     Case("bridge-out-is-a-file", "bridge", ("--synthetic", "--out", "notes.txt"), ("--out notes.txt is a file",), setup=text_files),  # noqa: E501
+    Case("bridge-stress-in-metres", "bridge", ("--history", "history.nc", "--probes", "probes.nc", "--out", "{out}"), ("history variable 'stress_yy' (stress) has units 'm'", "[length]", "allowed: a pressure unit"), setup=stress_in_metres),  # noqa: E501
+    Case("bridge-modulus-in-kg", "bridge", ("--history", "history.nc", "--probes", "probes.nc", "--out", "{out}"), ("probes variable 'e_oed_v_linear' (modulus) has units 'kg'", "allowed: a pressure unit"), setup=modulus_in_kilograms),  # noqa: E501
+    Case("bridge-stress-no-units", "bridge", ("--history", "history.nc", "--probes", "probes.nc", "--out", "{out}"), ("history variable 'stress_xx' (stress) has no units attribute", "allowed:"), setup=stress_without_units),  # noqa: E501
     Case("bridge-unknown-option", "bridge", ("--synthetic", "--out", "{out}", "--fast"), ("unrecognized arguments",)),  # noqa: E501
 ]
 
