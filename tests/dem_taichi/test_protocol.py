@@ -270,6 +270,16 @@ def test_branches_in_two_processes_equal_the_serial_run(run, tmp_path):
         np.testing.assert_array_equal(par_probes[name].values, serial_probes[name].values)
     assert set(par.stages) == set(run.stages)
     assert "state_C" in par.files and "state_B'" in par.files
+    meshio = pytest.importorskip("meshio")
+    from dem_taichi.io.vtk_snapshots import read_pvd
+
+    serial_vtk, par_vtk = read_pvd(run.files["paraview"]), read_pvd(par.files["paraview"])
+    assert [label for label, _ in par_vtk] == [label for label, _ in serial_vtk]
+    for (_, a), (_, b) in zip(serial_vtk, par_vtk, strict=True):
+        ma, mb = meshio.read(a), meshio.read(b)
+        np.testing.assert_array_equal(mb.points, ma.points)
+        for name, values in ma.point_data.items():
+            np.testing.assert_array_equal(mb.point_data[name], values)
 
 
 def test_dynamic_sweep_only_at_the_chosen_states(run):
