@@ -3,6 +3,8 @@
 Public API
 ----------
 ``Simulation(scene, arch="cpu", precision="f64", deterministic=False, execution=None)``
+    ``scene``: a :class:`dem_taichi.config.Scene`, a built-in scene name (``"smoke"``) or a
+    TOML path.
     Builds the rods (a random gas from the scene, or ``initial=GasState``), allocates the arrays,
     builds the neighbour list and computes the forces.
 ``sim.run(n_steps, control=None, output_every=None, writer=None, progress=False, callback=None)``
@@ -49,11 +51,12 @@ import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dem_taichi.config import Scene
+from dem_taichi.config import Scene, load_scene
 from dem_taichi.control import AxisControl, CellControl
 from dem_taichi.device_arrays import DEVICE_ARRAYS, kernel_parameters
 from dem_taichi.engine_state import SimulationState
@@ -106,7 +109,7 @@ class Simulation(SimulationViews, SimulationState):
 
     def __init__(
         self,
-        scene: Scene,
+        scene: Scene | str | Path,
         arch: str = "cpu",
         precision: str = "f64",
         deterministic: bool = False,
@@ -114,6 +117,8 @@ class Simulation(SimulationViews, SimulationState):
         initial: GasState | None = None,
         neighbour_capacity: int | None = None,
     ) -> None:
+        if not isinstance(scene, Scene):  # a built-in scene name or a TOML path
+            scene = load_scene(scene)
         self.scene = scene
         self.runtime = ensure_runtime(arch, precision)
         self.arch, self.precision, self.deterministic = arch, precision, deterministic
