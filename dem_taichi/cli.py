@@ -42,7 +42,13 @@ import sys
 from pathlib import Path
 
 from dem_taichi import __version__
-from dem_taichi.config import Scene, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.config import (
+    Scene,
+    load_scene,
+    scene_from_toml,
+    scene_to_toml,
+    scene_with_overrides,
+)
 from tiv_model.command_line import (
     ArgumentParser,
     UsageError,
@@ -117,7 +123,7 @@ def _run(args: argparse.Namespace) -> int:
             "--resume and --overwrite exclude each other: --resume continues the run in --out, "
             "--overwrite replaces it; give one of them"
         )
-    scene = load_scene(args.scene)
+    scene = scene_with_overrides(load_scene(args.scene), args.set)
     v0 = 1.0 / scene.particles.initial_area_fraction
     if scene.control.target_specific_volume >= v0:
         raise UsageError(
@@ -279,6 +285,13 @@ def _parser() -> ArgumentParser:
         help="replace the run already in --out (else a used --out is refused)",
     )
     run.add_argument("--deterministic", action="store_true", help="bitwise reproducible (CPU)")
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene key, e.g. --set contact.mu=0.2 (repeatable; validated as the file)",
+    )
     run.add_argument(
         "--no-progress", dest="progress", action="store_false", help="no progress bars"
     )

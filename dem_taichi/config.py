@@ -80,6 +80,7 @@ __all__ = [
     "Output",
     "load_scene",
     "scene_from_dict",
+    "scene_with_overrides",
     "scene_from_toml",
     "scene_to_toml",
     "register_section",
@@ -507,6 +508,32 @@ def load_scene(path_or_name: str | Path) -> Scene:
             "(dem_taichi/scenes/smoke.toml)"
         )
     return scene
+
+
+def scene_with_overrides(scene: Scene, overrides: list[str] | tuple[str, ...]) -> Scene:
+    """The scene with ``section.key=value`` overrides applied (e.g. ``contact.mu=0.2``,
+    ``protocol.radial_stress_ratios="0.3"``), validated as a scene file is: an unknown section
+    or key, or an invalid value, fails naming it and what is allowed. Values are read as TOML
+    values (numbers, booleans, quoted strings); a bare word is taken as a string."""
+    if not overrides:
+        return scene
+    data = tomllib.loads(scene_to_toml(scene))
+    for item in overrides:
+        name, sep, text = item.partition("=")
+        section, dot, key = name.strip().partition(".")
+        if not sep or not dot or not section or not key.strip():
+            raise SceneError(
+                f"--set {item!r}: expected section.key=value (e.g. contact.mu=0.2 or scene.seed=4)"
+            )
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()  # a bare word, e.g. particles.rod_model=bonded
+        data.setdefault(section, {})[key.strip()] = value
+    rigid = data.get("particles", {}).get("rod_model", "rigid") != "bonded"
+    if rigid and not any(item.strip().startswith("bonds.") for item in overrides):
+        data.pop("bonds", None)  # a bonded scene made rigid by --set: its [bonds] no longer apply
+    return scene_from_dict(data, source_text="")
 
 
 def _toml_value(value: Any) -> str:

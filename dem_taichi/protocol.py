@@ -56,7 +56,7 @@ from dem_taichi.branches import (
     run_branch_on,
     run_branches_in_processes,
 )
-from dem_taichi.config import Scene, load_scene, scene_to_toml
+from dem_taichi.config import Scene, load_scene, scene_to_toml, scene_with_overrides
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import probing_settings, protocol_settings
 from dem_taichi.protocol_records import (
@@ -318,6 +318,14 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         action="store_true",
         help="replace the run already in --out (else a used --out is refused)",
     )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a scene key, e.g. --set protocol.radial_stress_ratios='\"0.3\"' or "
+        "--set scene.seed=4 (repeatable; validated as the file)",
+    )
     add_common_flags(parser)
     return parser
 
@@ -325,8 +333,9 @@ def _parser(prog: str) -> argparse.ArgumentParser:
 def _main(argv: list[str], prog: str) -> int:
     args = _parser(prog).parse_args(argv)
     command = f"{prog} " + " ".join(argv)
+    scene = scene_with_overrides(load_scene(args.scene), args.set)
     result = run_protocol(
-        args.scene,
+        scene,
         args.out,
         arch=args.arch,
         precision=args.precision,

@@ -192,6 +192,10 @@ DEM_CASES = [
     Case("protocol-path-states", "dem", PROTOCOL, ("save_path_states = true needs save_states",), smoke_with(protocol={"save_path_states": True, "save_states": False})),  # noqa: E501
     Case("protocol-probing-key", "dem", PROTOCOL, ("[probing] unknown key(s)",), smoke_with(probing={"amplitude": 1e-6})),  # noqa: E501
     Case("protocol-module-no-scene", "protocol", ("--out", "{out}"), ("required", "scene")),
+    Case("run-set-unknown-key", "dem", (*RUN, "--set", "contact.muu=1"), ("[contact] unknown key(s) muu", "allowed keys"), smoke_with()),  # noqa: E501
+    Case("run-set-no-section", "dem", (*RUN, "--set", "mu=0.2"), ("expected section.key=value",), smoke_with()),  # noqa: E501
+    Case("protocol-set-out-of-range", "dem", (*PROTOCOL, "--set", "protocol.target_mean_stress=-3"), ("target_mean_stress = -3.0 is out of range",), smoke_with()),  # noqa: E501
+    Case("protocol-set-bonds-rigid", "dem", (*PROTOCOL, "--set", "bonds.bending=1"), ("[bonds] is used only with",), smoke_with()),  # noqa: E501
     Case("protocol-module-empty-scene", "protocol", ("{scene}", "--out", "{out}"), ("is empty",), ""),  # noqa: E501
 ]
 

@@ -150,3 +150,31 @@ def test_gas_is_non_overlapping_seeded_and_at_the_area_fraction():
     dist = np.linalg.norm(diff, axis=-1)
     assert dist[rod[:, None] != rod[None, :]].min() >= scene.particles.diameter
     assert np.abs(gas.velocity.mean(axis=0)).max() < 1e-12
+
+
+def test_scene_overrides_are_validated_like_the_file():
+    from dem_taichi.config import scene_with_overrides
+
+    base = load_scene("smoke")
+    scene = scene_with_overrides(
+        base, ["contact.mu=0.2", "scene.seed=4", "particles.rod_model=bonded", "bonds.bending=1"]
+    )
+    assert (scene.contact.mu, scene.scene.seed, scene.bonded, scene.bonds.bending) == (
+        0.2, 4, True, 1.0,
+    )  # fmt: skip
+    assert scene_with_overrides(base, []) is base
+    quoted = scene_with_overrides(base, ['protocol.radial_stress_ratios="0.2, 0.3"'])
+    assert quoted.extensions["protocol"].radial_stress_ratios == "0.2, 0.3"
+    # a bonded scene made rigid drops its [bonds]
+    rigid = scene_with_overrides(load_scene("smoke_bonded"), ["particles.rod_model=rigid"])
+    assert not rigid.bonded
+    for bad, words in (
+        (["contact.muu=1"], "unknown key(s) muu; allowed keys"),
+        (["contact.mu=-1"], "mu = -1.0 is out of range"),
+        (["mu=0.2"], "expected section.key=value"),
+        (["nosection.x=1"], "unknown section(s) [nosection]"),
+        (["bonds.bending=1"], "[bonds] is used only with"),
+    ):
+        with pytest.raises(SceneError) as error:
+            scene_with_overrides(base, bad)
+        assert words in str(error.value)
