@@ -310,11 +310,14 @@ def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float =
     return history, probes, truth
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser(prog: str = PROG) -> argparse.ArgumentParser:
+    from bridge import __version__
+
     parser = ArgumentParser(
-        prog=PROG,
+        prog=prog,
         description="Calibrate the TIV model on DEM results, predict, draw and report.",
     )
+    parser.add_argument("--version", action="version", version=f"bridge {__version__}")
     parser.add_argument("--history", help="DEM history or relaxed_states.nc")
     parser.add_argument("--probes", help="DEM probes.nc (optional: no elastic stage without it)")
     parser.add_argument("--out", required=True, help="output directory")
@@ -401,8 +404,8 @@ def _check_files(args: argparse.Namespace) -> None:
         )
 
 
-def _run(argv: list[str]) -> int:
-    parser = _parser()
+def _run(argv: list[str], prog: str = PROG) -> int:
+    parser = _parser(prog)
     args = parser.parse_args(argv)
     stress_scale = args.stress_scale
     if args.synthetic:
@@ -454,11 +457,12 @@ def _run(argv: list[str]) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m bridge.pipeline``; returns the exit code (one error handler,
-    :mod:`tiv_model.command_line`: bad input is one line with exit code 2; a calibration that
-    cannot run, :class:`CalibrationError`, exit code 1; ``--debug`` shows the traceback)."""
-    return run_command(PROG, _run, argv, failures={CalibrationError: 1})
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """``python -m bridge.pipeline`` (also ``python -m bridge calibrate``); returns the exit code
+    (one error handler, :mod:`tiv_model.command_line`: bad input is one line with exit code 2;
+    a calibration that cannot run, :class:`CalibrationError`, exit code 1; ``--debug`` shows
+    the traceback)."""
+    return run_command(prog, lambda args: _run(args, prog), argv, failures={CalibrationError: 1})
 
 
 if __name__ == "__main__":

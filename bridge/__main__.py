@@ -1,0 +1,40 @@
+"""``python -m bridge calibrate ...`` (the pipeline of :mod:`bridge.pipeline`) and
+``python -m bridge --version``; the console script ``clay-bridge`` is the same."""
+
+from __future__ import annotations
+
+import sys
+
+from bridge import __version__
+
+USAGE = (
+    "usage: python -m bridge [--version] calibrate [options]\n"
+    "  calibrate   calibrate the TIV model on DEM results, predict, draw and report "
+    "(python -m bridge calibrate --help)"
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``calibrate`` to :func:`bridge.pipeline.main`; returns the exit code."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["--version"]:
+        print(f"bridge {__version__}")
+        return 0
+    if argv[:1] in (["-h"], ["--help"]):
+        print(USAGE)
+        return 0
+    if argv[:1] != ["calibrate"]:
+        given = argv[0] if argv else "nothing"
+        print(
+            f"python -m bridge: error: unknown command {given!r}; allowed: calibrate "
+            "(python -m bridge calibrate --help)",
+            file=sys.stderr,
+        )
+        return 2
+    from bridge.pipeline import main as calibrate
+
+    return calibrate(argv[1:], prog="python -m bridge calibrate")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
