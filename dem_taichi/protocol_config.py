@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 from dem_taichi.sections import SceneError, SceneSection
 from dem_taichi.sections import field_choices as _choices
+from dem_taichi.sections import field_list as _list
 from dem_taichi.sections import field_range as _range
 
 __all__ = [
@@ -135,7 +136,7 @@ class ProtocolConfig(SceneSection):
     target_mean_stress: float = field(default=100.0, metadata=_range(0.0, None, lo_open=True))
     path_increments: int = field(default=6, metadata=_range(1, 1000))
     unloading_increments: int = field(default=4, metadata=_range(1, 1000))
-    radial_stress_ratios: str = ""
+    radial_stress_ratios: str = field(default="", metadata=_list("η of the radial paths"))
     run_isotropic: bool = True
     run_k0: bool = True
     run_unloading: bool = True
@@ -233,10 +234,10 @@ class ProbingConfig(SceneSection):
 
     SECTION = "probing"
     enabled: bool = True
-    states: str = "A, B, C, B'"
+    states: str = field(default="A, B, C, B'", metadata=_list("probed states"))
     every_n_increments: int = field(default=2, metadata=_range(0))
     dynamic: bool = True
-    dynamic_states: str = "all"
+    dynamic_states: str = field(default="all", metadata=_list("states of the dynamic sweep"))
     amplitude_min: float = field(default=1e-9, metadata=_range(0.0, 0.1, lo_open=True))
     amplitude_max: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
     amplitudes_per_decade: int = field(default=1, metadata=_range(1, 20))

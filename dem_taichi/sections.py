@@ -25,6 +25,24 @@ def field_range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
     return {"range": (lo, hi, lo_open, hi_open), "doc": doc}
 
 
+def field_list(doc=""):
+    """Metadata of a text field that holds a list: a TOML array (``[0.2, 0.35]``, ``["A", "C"]``)
+    is accepted as well as the comma-separated string (``"0.2, 0.35"``), and stored as the
+    string."""
+    return {"list": True, "doc": doc}
+
+
+def _list_text(key: str, value) -> str:
+    items = []
+    for item in value:
+        if isinstance(item, bool) or not isinstance(item, int | float | str):
+            raise SceneError(
+                f'{key} = {value!r}: a list of numbers or strings, e.g. [0.2, 0.35] or "0.2, 0.35"'
+            )
+        items.append(item if isinstance(item, str) else repr(item))
+    return ", ".join(items)
+
+
 def field_choices(*values, doc=""):
     """``metadata`` of a field allowed to take one of ``values``."""
     return {"choices": tuple(values), "doc": doc}
@@ -66,6 +84,9 @@ class SceneSection:
                 object.__setattr__(self, f.name, float(value))
                 value = float(value)
             elif kind == "str":
+                if f.metadata.get("list") and isinstance(value, list | tuple):
+                    value = _list_text(key, value)
+                    object.__setattr__(self, f.name, value)
                 if not isinstance(value, str):
                     raise SceneError(f"{key} = {value!r}: must be a string")
             if "range" in f.metadata:

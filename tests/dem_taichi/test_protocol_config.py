@@ -79,3 +79,23 @@ def test_parse_number_list():
     assert parse_number_list(" 1, 2.5 ,-3", "k") == (1.0, 2.5, -3.0)
     with pytest.raises(SceneError, match="k = "):
         parse_number_list("1, nan", "k")
+
+
+def test_scene_lists_may_be_toml_arrays():
+    text = (
+        "[protocol]\nradial_stress_ratios = [0.2, 0.35, 0.5]\n"
+        '[probing]\nstates = ["A", "C", "R1_end"]\ndynamic_states = ["C"]\n'
+    )
+    scene = scene_from_toml(text)
+    protocol, probing = scene.extensions["protocol"], scene.extensions["probing"]
+    assert protocol.radial_stress_ratios == "0.2, 0.35, 0.5"
+    assert probing.states == "A, C, R1_end" and probing.dynamic_states == "C"
+    # the same scene as the comma-separated strings, and it round-trips
+    same = scene_from_toml(
+        '[protocol]\nradial_stress_ratios = "0.2, 0.35, 0.5"\n'
+        '[probing]\nstates = "A, C, R1_end"\ndynamic_states = "C"\n'
+    )
+    assert scene_to_toml(scene) == scene_to_toml(same)
+    assert scene_from_toml(scene_to_toml(scene)) == scene
+    with pytest.raises(SceneError, match="a list of numbers or strings"):
+        scene_from_toml("[protocol]\nradial_stress_ratios = [true]\n")
