@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -77,7 +78,8 @@ class Parameters:
     def __post_init__(self) -> None:
         for name, (symbol, units, lo, lo_in, hi, hi_in, meaning) in PARAMETER_INFO.items():
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            # any real scalar, numpy's included (values read back from netCDF are numpy scalars)
+            if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
                 raise ParameterError(
                     f"parameter {name} ({symbol}) must be a real number, got {value!r}"
                 )

@@ -93,3 +93,18 @@ def test_bound_laws_are_smooth_at_zero_and_saturate(law):
             assert f == pytest.approx(exact, rel=1e-13)
         assert f == pytest.approx(scale * a, rel=1e-3)
     assert float(law(50.0, TABLE1)) * 50.0 == pytest.approx(scale, rel=1e-12)
+
+
+def test_numpy_scalars_are_real_numbers():
+    """Values read back from netCDF are numpy scalars: accepted and stored as float."""
+    import numpy as np
+
+    from tiv_model.params import TABLE1
+
+    changed = TABLE1.replace(g=np.float32(50.0), k=np.int64(70), n=np.float64(0.2))
+    assert (changed.g, changed.k, changed.n) == (50.0, 70.0, 0.2)
+    assert type(changed.g) is float and type(changed.k) is float
+    with pytest.raises(ParameterError, match="real number"):
+        TABLE1.replace(g=np.bool_(True))
+    with pytest.raises(ParameterError, match="real number"):
+        TABLE1.replace(g=np.array([50.0]))
