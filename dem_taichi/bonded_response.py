@@ -24,7 +24,8 @@ from typing import Literal
 import numpy as np
 
 from dem_taichi import forcelaw
-from dem_taichi.flexible_response import BondStiffness, bond_jacobians
+from dem_taichi.bonds import BondParameters, bond_forces
+from dem_taichi.flexible_response import BondStiffness, bond_jacobians, disc_forces_and_torques
 from dem_taichi.linear_response import (
     ENGINE_STIFFNESS,
     LinearResponse,
@@ -65,28 +66,23 @@ def fragments(n_discs: int, g: np.ndarray, intact: np.ndarray) -> np.ndarray:
 
 
 def bond_state(snapshot: NetworkSnapshot):
-    """Geometry and forces of the intact bonds of a bonded snapshot.
+    """Geometry and forces of the intact bonds of a bonded snapshot, from the bond law of
+    :func:`dem_taichi.bonds.bond_forces` (no dashpots: a static state).
 
-    Returns (h, g, axis a_m, tangent t_m, d = x_h − x_g, λ = (k_n e_n, k_t e_t, k_b e_b)).
+    Returns (h, g, axis a_m, tangent t_m, λ = (k_n e_n, k_t e_t, k_b e_b), the
+    :class:`dem_taichi.bonds.BondResult`; its ``separation`` is d = x_h − x_g).
     """
     bonds = snapshot.bonds
     g = bonds.g[bonds.intact]
-    h = g + 1
-    x, theta = snapshot.rod_position, snapshot.rod_angle
-    d = x[h] - x[g]  # the snapshot's chains are contiguous
-    theta_m = 0.5 * (theta[g] + theta[h])
+    law = BondParameters(bonds.k_n, bonds.k_t, bonds.k_b, 0.0, 0.0, 0.0, bonds.rest_length)
+    # the snapshot's chains are contiguous: the minimum image leaves every bond vector as it is
+    result = bond_forces(snapshot.rod_position, snapshot.rod_angle, g, snapshot.cell_lengths, law)
+    theta = snapshot.rod_angle
+    theta_m = 0.5 * (theta[g] + theta[g + 1])
     axis = np.stack([np.cos(theta_m), np.sin(theta_m)], axis=-1)
     tangent = np.stack([-axis[:, 1], axis[:, 0]], axis=-1)
-    e = np.stack(
-        [
-            np.sum(d * axis, axis=-1) - bonds.rest_length,
-            np.sum(d * tangent, axis=-1),
-            theta[h] - theta[g],
-        ],
-        axis=-1,
-    )
-    lam = e * np.array([bonds.k_n, bonds.k_t, bonds.k_b])
-    return h, g, axis, tangent, d, lam
+    lam = result.strain * np.array([bonds.k_n, bonds.k_t, bonds.k_b])
+    return g + 1, g, axis, tangent, lam, result
 
 
 def bonded_response(
@@ -131,7 +127,8 @@ def bonded_response(
     keep_disc = keep_fragment[fragment]
     used = active & keep_disc[snapshot.pair_i] & keep_disc[snapshot.pair_j]
 
-    h, g, axis, tangent, d, lam = bond_state(snapshot)
+    h, g, axis, tangent, lam, law = bond_state(snapshot)
+    d = law.separation
     stiffness = BondStiffness(bonds.k_n, bonds.k_t, bonds.k_b)
     k_all, j_all, force_all = bond_jacobians(axis, tangent, d, lam, stiffness, include_geometric)
     kept = keep_disc[g]
@@ -160,7 +157,7 @@ def bonded_response(
         disc = int(discs[len(discs) // 2])
         pinned.append(disc)
         keep_dof[3 * disc : 3 * disc + 2] = False
-    residual = _residual_forces(snapshot, pairs, h, g, force_all, lam, axis, tangent, d)
+    residual = _residual_forces(snapshot, pairs, h, g, law)
     force_scale = np.mean(np.linalg.norm(pairs.force[active], axis=-1)) if np.any(active) else 0.0
     unbalanced = float(np.max(np.abs(residual[keep_disc])) / force_scale) if force_scale else 0.0
     return relaxed_response(
@@ -171,18 +168,12 @@ def bonded_response(
     )  # fmt: skip
 
 
-def _residual_forces(snapshot, pairs, h, g, force_h, lam, axis, tangent, d):
-    """Net force and torque (M, 3) on every disc from its pairs and bonds (0 in equilibrium)."""
+def _residual_forces(snapshot, pairs, h, g, law):
+    """Net force and torque (M, 3) on every disc from its pairs and bonds (0 in equilibrium);
+    ``law`` the bonds' :class:`dem_taichi.bonds.BondResult`."""
     n = snapshot.n_rods
-    out = np.zeros((n, 3))
+    force, torque = disc_forces_and_torques(snapshot, pairs)
     for a in range(2):
-        out[:, a] += np.bincount(snapshot.pair_i, pairs.force[:, a], n)
-        out[:, a] -= np.bincount(snapshot.pair_j, pairs.force[:, a], n)
-        out[:, a] += np.bincount(h, force_h[:, a], n) - np.bincount(g, force_h[:, a], n)
-    moment = -0.5 * forcelaw.cross(pairs.separation, pairs.force)
-    out[:, 2] += np.bincount(snapshot.pair_i, moment, n) + np.bincount(snapshot.pair_j, moment, n)
-    e_t = np.sum(d * tangent, axis=-1)
-    d_a = np.sum(d * axis, axis=-1)
-    common = 0.5 * lam[:, 0] * e_t - 0.5 * lam[:, 1] * d_a
-    out[:, 2] += np.bincount(h, -(common + lam[:, 2]), n) + np.bincount(g, -(common - lam[:, 2]), n)
-    return out
+        force[:, a] += np.bincount(h, law.force_h[:, a], n) - np.bincount(g, law.force_h[:, a], n)
+    torque += np.bincount(h, law.torque_h, n) + np.bincount(g, law.torque_g, n)
+    return np.column_stack([force, torque])

@@ -110,6 +110,27 @@ def bond_breaks(e_n, params: T):
 
 
 @ti.func
+def holding_bond(g, pos: T, angle: T, vel: T, omega: T, bond_intact: T, cell: T, params: T):
+    """The bond g—g+1 if it holds: (1, F_hx, F_hy, τ_h, τ_g), else (0, 0, 0, 0, 0). A bond whose
+    tension exceeds F_b breaks here, for good (``bond_intact[g] = 0``), and adds nothing. The
+    caller checks that g has a bond (g % chain != chain − 1)."""
+    held = 0
+    fx = 0.0
+    fy = 0.0
+    tau_h = 0.0
+    tau_g = 0.0
+    if bond_intact[g] == 1:
+        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
+            g, pos, angle, vel, omega, cell, params
+        )
+        if bond_breaks(e_n, params):
+            bond_intact[g] = 0
+        else:
+            held = 1
+    return held, fx, fy, tau_h, tau_g
+
+
+@ti.func
 def add_bond_forces(
     chain: T,
     atomic: ti.template(),
@@ -126,13 +147,11 @@ def add_bond_forces(
 ):
     """Add the forces of the bond g—g+1 (if it exists and holds) to both bodies; break it when
     its tension exceeds F_b (then it adds nothing)."""
-    if g % chain != chain - 1 and bond_intact[g] == 1:
-        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
-            g, pos, angle, vel, omega, cell, params
+    if g % chain != chain - 1:
+        held, fx, fy, tau_h, tau_g = holding_bond(
+            g, pos, angle, vel, omega, bond_intact, cell, params
         )
-        if bond_breaks(e_n, params):
-            bond_intact[g] = 0
-        else:
+        if held == 1:
             h = g + 1
             if ti.static(atomic):
                 ti.atomic_add(force[h, 0], fx)
@@ -158,25 +177,18 @@ def gather_bond_forces(
     """Add to body b only the forces of its two bonds (b−1—b and b—b+1): deterministic in
     parallel (each bond evaluated by both its bodies with the same arithmetic)."""
     if b % chain != 0:
-        g = b - 1
-        if bond_intact[g] == 1:
-            fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
-                g, pos, angle, vel, omega, cell, params
-            )
-            if bond_breaks(e_n, params):
-                bond_intact[g] = 0
-            else:
-                force[b, 0] = force[b, 0] + fx
-                force[b, 1] = force[b, 1] + fy
-                torque[b] = torque[b] + tau_h
+        held, fx, fy, tau_h, tau_g = holding_bond(
+            b - 1, pos, angle, vel, omega, bond_intact, cell, params
+        )
+        if held == 1:
+            force[b, 0] = force[b, 0] + fx
+            force[b, 1] = force[b, 1] + fy
+            torque[b] = torque[b] + tau_h
     if b % chain != chain - 1:
-        if bond_intact[b] == 1:
-            fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
-                b, pos, angle, vel, omega, cell, params
-            )
-            if bond_breaks(e_n, params):
-                bond_intact[b] = 0
-            else:
-                force[b, 0] = force[b, 0] - fx
-                force[b, 1] = force[b, 1] - fy
-                torque[b] = torque[b] + tau_g
+        held, fx, fy, tau_h, tau_g = holding_bond(
+            b, pos, angle, vel, omega, bond_intact, cell, params
+        )
+        if held == 1:
+            force[b, 0] = force[b, 0] - fx
+            force[b, 1] = force[b, 1] - fy
+            torque[b] = torque[b] + tau_g
