@@ -30,7 +30,7 @@ from scipy import stats
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from dem_taichi.config import load_scene  # noqa: E402
-from dem_taichi.io import open_probes  # noqa: E402
+from dem_taichi.findings import mean_interval, state_findings  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 FINDINGS = ("specific_volume", "fabric_deviator", "e_oed_v", "e_oed_h")
@@ -71,26 +71,18 @@ def run(args) -> None:
 
 
 def findings(folder: Path) -> dict[str, dict[str, float]]:
-    summary = json.loads((folder / "summary.json").read_text())
-    probes = open_probes(folder / "probes.nc")
-    labels = probes["state_label"].values.astype(str)
-    rows = {}
-    for label in ("B", "C"):
-        state = summary["states"][label]
-        at = int(np.flatnonzero(labels == label)[-1])
-        rows[label] = {
-            "specific_volume": state["specific_volume"],
-            "fabric_deviator": state["fabric_deviator"],
-            "e_oed_v": float(probes["e_oed_v_linear"].values[at]),
-            "e_oed_h": float(probes["e_oed_h_linear"].values[at]),
-            "seconds": summary["total_seconds"],
-        }
-    return rows
+    """The compared findings at B and C of one run (:func:`dem_taichi.findings.state_findings`)
+    and the run's wall time."""
+    seconds = json.loads((folder / "summary.json").read_text())["total_seconds"]
+    states = state_findings(folder)
+    return {
+        label: {name: states[label][name] for name in FINDINGS} | {"seconds": seconds}
+        for label in ("B", "C")
+    }
 
 
 def _interval(values: np.ndarray) -> float:
-    n = len(values)
-    return float(stats.t.ppf(0.975, n - 1) * values.std(ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+    return mean_interval(values)[1]
 
 
 def summarise(out: Path, stiffness: float | None) -> str:
