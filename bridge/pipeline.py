@@ -319,6 +319,14 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"bridge {__version__}")
     parser.add_argument("--history", help="DEM history or relaxed_states.nc")
+    parser.add_argument(
+        "--replicas",
+        nargs="+",
+        metavar="RUN_DIR",
+        help="calibrate on the mean of replica protocol runs (folders, or a sweep folder whose "
+        "finished members are the replicas) and on each one: the spread in the parameters "
+        "(bridge.replicas); instead of --history/--probes",
+    )
     parser.add_argument("--probes", help="DEM probes.nc (optional: no elastic stage without it)")
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument(
@@ -408,14 +416,21 @@ def _run(argv: list[str], prog: str = PROG) -> int:
     parser = _parser(prog)
     args = parser.parse_args(argv)
     stress_scale = args.stress_scale
-    if args.synthetic:
+    if args.replicas and (args.history or args.probes or args.synthetic):
+        raise UsageError(
+            "--replicas reads each run's relaxed_states.nc and probes.nc: leave out --history, "
+            "--probes and --synthetic"
+        )
+    if args.replicas:
+        _check_files(args)
+    elif args.synthetic:
         if args.history or args.probes:
             raise UsageError("--synthetic makes its own inputs: leave out --history and --probes")
         _check_files(args)
         history, probes, truth = synthetic_inputs(args.out, noise=args.noise)
     else:
         if not args.history:
-            parser.error("--history is required (or --synthetic)")
+            parser.error("--history is required (or --synthetic, or --replicas)")
         _check_files(args)
         history, probes, truth = args.history, args.probes, None
     model_options = ModelOptions(
@@ -445,6 +460,13 @@ def _run(argv: list[str], prog: str = PROG) -> int:
         stages=tuple(args.stages),
         identifiability=not args.no_identifiability,
     )
+    if args.replicas:
+        from .replicas import calibrate_replicas
+
+        calibrate_replicas(args.replicas, args.out, options, say=_quiet_say(args.quiet))
+        if not args.quiet:
+            print((Path(args.out) / "replicas.md").read_text())
+        return 0
     outcome = calibrate_from_results(history, probes, args.out, options)
     if args.quiet:
         return 0
@@ -455,6 +477,10 @@ def _run(argv: list[str], prog: str = PROG) -> int:
             print(f"    {sym:<12} {value:<10.5g} {outcome['parameters'][sym]:.6g}")
     print(f"report: {outcome['files']['report']} ({outcome['seconds']:.1f} s)")
     return 0
+
+
+def _quiet_say(quiet: bool):
+    return (lambda *_: None) if quiet else print
 
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:

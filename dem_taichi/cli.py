@@ -44,11 +44,10 @@ from pathlib import Path
 from dem_taichi import __version__
 from dem_taichi.config import (
     Scene,
-    load_scene,
     scene_from_toml,
     scene_to_toml,
-    scene_with_overrides,
 )
+from dem_taichi.presets import add_preset_option, scene_from_options
 from tiv_model.command_line import (
     ArgumentParser,
     UsageError,
@@ -123,7 +122,7 @@ def _run(args: argparse.Namespace) -> int:
             "--resume and --overwrite exclude each other: --resume continues the run in --out, "
             "--overwrite replaces it; give one of them"
         )
-    scene = scene_with_overrides(load_scene(args.scene), args.set)
+    scene = scene_from_options(args.scene, args.preset, args.set)
     v0 = 1.0 / scene.particles.initial_area_fraction
     if scene.control.target_specific_volume >= v0:
         raise UsageError(
@@ -292,6 +291,7 @@ def _parser() -> ArgumentParser:
         metavar="SECTION.KEY=VALUE",
         help="override a scene key, e.g. --set contact.mu=0.2 (repeatable; validated as the file)",
     )
+    add_preset_option(run)
     run.add_argument(
         "--no-progress", dest="progress", action="store_false", help="no progress bars"
     )

@@ -6,7 +6,8 @@ ranges and unknown keys, failing with a :class:`SceneError` that names the key a
 
 Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
 
-``[scene]``         name, seed, description
+``[scene]``         name, seed, description, preset (fast|balanced|accurate: a group of the
+                    numerical keys, :mod:`dem_taichi.presets`; keys written in the file win)
 ``[particles]``     n_rods, n_spheres, diameter d, spacing, disc_mass m, initial_area_fraction,
                     initial_speed (rms of the random gas velocity components), rod_model
                     (``"rigid"`` clumps, default, or ``"bonded"`` chains of disc bodies)
@@ -60,6 +61,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from dem_taichi.presets import PRESET_NAMES, fill_preset, set_keys
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.sections import SceneError, SceneSection
 from dem_taichi.sections import field_choices as _choices
@@ -97,6 +99,7 @@ class SceneInfo(SceneSection):
     name: str = "unnamed"
     seed: int = field(default=0, metadata=_range(0, 2**31 - 1))
     description: str = ""
+    preset: str = field(default="", metadata=_choices(*PRESET_NAMES))
 
 
 @dataclass(frozen=True)
@@ -413,7 +416,11 @@ def _load_section(cls: type, name: str, table: Any) -> Any:
 
 
 def scene_from_dict(data: dict, source_text: str = "") -> Scene:
-    """Build a :class:`Scene` from a nested dict (as returned by ``tomllib``)."""
+    """Build a :class:`Scene` from a nested dict (as returned by ``tomllib``).
+
+    A ``[scene] preset`` (:mod:`dem_taichi.presets`) fills the keys of its group that ``data``
+    does not give; the keys given win."""
+    data = fill_preset(data)
     allowed = {**_CORE_SECTIONS, **_EXTENSION_SECTIONS}
     unknown = sorted(set(data) - set(allowed))
     if unknown:
@@ -514,10 +521,12 @@ def scene_with_overrides(scene: Scene, overrides: list[str] | tuple[str, ...]) -
     """The scene with ``section.key=value`` overrides applied (e.g. ``contact.mu=0.2``,
     ``protocol.radial_stress_ratios="0.3"``), validated as a scene file is: an unknown section
     or key, or an invalid value, fails naming it and what is allowed. Values are read as TOML
-    values (numbers, booleans, quoted strings); a bare word is taken as a string."""
+    values (numbers, booleans, quoted strings); a bare word is taken as a string.
+    ``scene.preset=NAME`` writes that preset's keys first; the other overrides win over it."""
     if not overrides:
         return scene
     data = tomllib.loads(scene_to_toml(scene))
+    values: dict[str, Any] = {}
     for item in overrides:
         name, sep, text = item.partition("=")
         section, dot, key = name.strip().partition(".")
@@ -529,7 +538,8 @@ def scene_with_overrides(scene: Scene, overrides: list[str] | tuple[str, ...]) -
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError:
             value = text.strip()  # a bare word, e.g. particles.rod_model=bonded
-        data.setdefault(section, {})[key.strip()] = value
+        values[f"{section}.{key.strip()}"] = value
+    set_keys(data, values)
     rigid = data.get("particles", {}).get("rod_model", "rigid") != "bonded"
     if rigid and not any(item.strip().startswith("bonds.") for item in overrides):
         data.pop("bonds", None)  # a bonded scene made rigid by --set: its [bonds] no longer apply
@@ -547,7 +557,11 @@ def _toml_value(value: Any) -> str:
 
 
 def scene_to_toml(scene: Scene) -> str:
-    """Write the full scene (every key, defaults included) as TOML; round-trips exactly."""
+    """Write the full scene (every key, defaults included) as TOML; round-trips exactly.
+
+    ``[scene] preset`` is written only when set: its keys are all written anyway, and a scene
+    without one keeps the TOML (and the hash in run directories and sweeps) it had before
+    presets existed."""
     lines = []
     sections = {name: getattr(scene, name) for name in _CORE_SECTIONS}
     if not scene.bonded:
@@ -557,7 +571,7 @@ def scene_to_toml(scene: Scene) -> str:
         lines.append(f"[{name}]")
         for f in dataclasses.fields(section):
             value = getattr(section, f.name)
-            if value is None:
+            if value is None or (name == "scene" and f.name == "preset" and not value):
                 continue
             lines.append(f"{f.name} = {_toml_value(value)}")
         lines.append("")

@@ -56,8 +56,9 @@ from dem_taichi.branches import (
     run_branch_on,
     run_branches_in_processes,
 )
-from dem_taichi.config import Scene, load_scene, scene_to_toml, scene_with_overrides
+from dem_taichi.config import Scene, load_scene, scene_to_toml
 from dem_taichi.paths import ProtocolRunner
+from dem_taichi.presets import add_preset_option, scene_from_options
 from dem_taichi.protocol_config import probing_settings, protocol_settings
 from dem_taichi.protocol_records import (
     ProtocolError,
@@ -326,6 +327,7 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         help="override a scene key, e.g. --set protocol.radial_stress_ratios='\"0.3\"' or "
         "--set scene.seed=4 (repeatable; validated as the file)",
     )
+    add_preset_option(parser)
     add_common_flags(parser)
     return parser
 
@@ -333,7 +335,7 @@ def _parser(prog: str) -> argparse.ArgumentParser:
 def _main(argv: list[str], prog: str) -> int:
     args = _parser(prog).parse_args(argv)
     command = f"{prog} " + " ".join(argv)
-    scene = scene_with_overrides(load_scene(args.scene), args.set)
+    scene = scene_from_options(args.scene, args.preset, args.set)
     result = run_protocol(
         scene,
         args.out,

@@ -48,6 +48,7 @@ from dem_taichi.config import (
     scene_from_dict,
     scene_to_toml,
 )
+from dem_taichi.presets import set_keys
 
 __all__ = ["SweepError", "Member", "SweepSpec", "load_sweep", "sweep_from_toml"]
 
@@ -174,13 +175,7 @@ def _base_scene_dict(scene: Any, folder: Path) -> tuple[str, dict]:
 
 
 def _member_scene(base: dict, overrides: dict[str, Any]) -> Scene:
-    data = copy.deepcopy(base)
-    for key, value in overrides.items():
-        section, name = key.split(".")
-        table = data.setdefault(section, {})
-        if not isinstance(table, dict):
-            raise SceneError(f"[{section}] must be a table")
-        table[name] = value
+    data = set_keys(copy.deepcopy(base), overrides, where="sweep key")
     return scene_from_dict(data)
 
 

@@ -1,0 +1,173 @@
+"""Speed–accuracy presets: named groups of the scene keys that trade run time for accuracy.
+
+A preset sets the numerical knobs only, never the physics or the sample: the time step, the
+loading rate, the servo's stiffness and the relaxation tolerances. Selecting one:
+
+- in a scene file, ``[scene] preset = "fast" | "balanced" | "accurate"``: the preset fills
+  every one of its keys that the file does not give; keys written in the file win;
+- on the command line, ``--preset NAME`` (``run``, ``protocol``): the preset's keys replace the
+  scene's (a built-in scene states them all), and ``--set section.key=value`` still wins over
+  both;
+- in Python, :func:`with_preset` (the command line's rule) or a scene dict with
+  ``scene.preset`` (the file's rule).
+
+The measured cost and error of each preset (wall time and the error of each finding against a
+converged reference run of the same sample, isotropic and K0 paths of the ``default`` scene)
+are in ``benchmarks/results/speed_accuracy.md`` (``benchmarks/speed_accuracy.py``) and in the
+README. ``balanced`` is the built-in scenes' own integration and loading (dt_safety 0.15,
+inertial number 1e-3, UFR 1e-4) with the secant servo, the paper scene's; ``fast`` and
+``accurate`` move every knob one step each way.
+
+Keys (``section.key``) and why each is a knob (units: DEM, time in units of sqrt(m/k_n)·…):
+
+- ``integration.dt_safety``: Δt / t_c. Stable to 0.35 on jammed packings
+  (``benchmarks/results/dem_stability.csv``); ``fast`` stays below it with a margin.
+- ``control.inertial_number_max``: the quasi-static loading-rate cap I = ε̇ d sqrt(ρ/p).
+- ``protocol.servo_stiffness``: "secant" reaches each stress target near the rate cap,
+  "elastic" approaches it slower on plastic paths (servo_trade results: 2× the wall time).
+- ``protocol.relax_unbalanced_force``: UFR at which a state along a path counts as static.
+- ``protocol.stress_tolerance``: |σ − σ_target| / σ_target accepted at a relaxed state.
+- ``probing.relax_unbalanced_force``: UFR of the dynamic probes' relaxation.
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+from typing import Any
+
+__all__ = [
+    "PRESETS",
+    "PRESET_NAMES",
+    "preset_keys",
+    "fill_preset",
+    "with_preset",
+    "scene_from_options",
+    "add_preset_option",
+]
+
+PRESETS: MappingProxyType = MappingProxyType(
+    {
+        "fast": MappingProxyType(
+            {
+                "integration.dt_safety": 0.25,
+                "control.inertial_number_max": 3.0e-3,
+                "protocol.servo_stiffness": "secant",
+                "protocol.relax_unbalanced_force": 1.0e-3,
+                "protocol.stress_tolerance": 3.0e-3,
+                "probing.relax_unbalanced_force": 1.0e-6,
+            }
+        ),
+        "balanced": MappingProxyType(
+            {
+                "integration.dt_safety": 0.15,
+                "control.inertial_number_max": 1.0e-3,
+                "protocol.servo_stiffness": "secant",
+                "protocol.relax_unbalanced_force": 1.0e-4,
+                "protocol.stress_tolerance": 1.0e-3,
+                "probing.relax_unbalanced_force": 1.0e-7,
+            }
+        ),
+        "accurate": MappingProxyType(
+            {
+                "integration.dt_safety": 0.075,
+                "control.inertial_number_max": 2.5e-4,
+                "protocol.servo_stiffness": "elastic",
+                "protocol.relax_unbalanced_force": 1.0e-5,
+                "protocol.stress_tolerance": 5.0e-4,
+                "probing.relax_unbalanced_force": 1.0e-8,
+            }
+        ),
+    }
+)
+
+#: The allowed values of ``[scene] preset`` ("" = none).
+PRESET_NAMES = ("", *PRESETS)
+
+
+def preset_keys(name: str, where: str = "[scene] preset") -> dict[str, Any]:
+    """The ``section.key`` → value map of the preset ``name``; a clear error for another name."""
+    from dem_taichi.sections import SceneError
+
+    if name not in PRESETS:
+        raise SceneError(
+            f"{where} = {name!r}: allowed values are {', '.join(PRESETS)} "
+            "(or leave it out for the scene's own keys)"
+        )
+    return dict(PRESETS[name])
+
+
+def fill_preset(data: dict) -> dict:
+    """A scene dict (as read from TOML) with its ``[scene] preset`` filled in: every key of the
+    preset that the dict does not give is added; keys present win. No preset: unchanged."""
+    name = data.get("scene", {}).get("preset", "") if isinstance(data.get("scene"), dict) else ""
+    if not name:
+        return data
+    if not isinstance(name, str):
+        from dem_taichi.sections import SceneError
+
+        raise SceneError(f"[scene] preset = {name!r}: must be a string, one of {PRESET_NAMES}")
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in data.items()}
+    for key, value in preset_keys(name).items():
+        section, field_name = key.split(".")
+        table = out.setdefault(section, {})
+        if isinstance(table, dict):
+            table.setdefault(field_name, value)
+    return out
+
+
+def with_preset(scene, name: str):
+    """``scene`` with the preset ``name``'s keys replacing its own (the command line's rule),
+    and ``[scene] preset`` set to ``name``. ``name = ""`` returns the scene unchanged."""
+    if not name:
+        return scene
+    from dem_taichi.config import scene_with_overrides
+
+    items = [f"{key}={_toml(value)}" for key, value in preset_keys(name).items()]
+    return scene_with_overrides(scene, [*items, f'scene.preset="{name}"'])
+
+
+def _toml(value: Any) -> str:
+    return f'"{value}"' if isinstance(value, str) else repr(value)
+
+
+def scene_from_options(scene, preset: str = "", overrides=()):
+    """The scene of a command line: ``scene`` (a Scene, TOML path or built-in name), then the
+    ``--preset`` (its keys replace the scene's), then the ``--set`` overrides (they win)."""
+    from dem_taichi.config import Scene, load_scene, scene_with_overrides
+
+    loaded = scene if isinstance(scene, Scene) else load_scene(scene)
+    if preset:
+        loaded = with_preset(loaded, preset)
+    return scene_with_overrides(loaded, list(overrides))
+
+
+def add_preset_option(parser) -> None:
+    """The ``--preset`` option of a command line that takes a scene."""
+    parser.add_argument(
+        "--preset",
+        choices=tuple(PRESETS),
+        default="",
+        help="speed–accuracy preset: its keys (dt_safety, loading rate, servo, tolerances) "
+        "replace the scene's; --set still wins (default: the scene's own keys; "
+        "benchmarks/results/speed_accuracy.md gives each one's cost and error)",
+    )
+
+
+def set_keys(data: dict, overrides: dict[str, Any], where: str = "--set") -> dict:
+    """``data`` (a scene dict) with ``section.key`` → value ``overrides`` written in, in place.
+
+    An override of ``scene.preset`` first writes that preset's keys (replacing the scene's:
+    the command line's rule), then every override, so that the other overrides win over it.
+    Used by ``--set`` (:func:`dem_taichi.config.scene_with_overrides`) and by the sweeps."""
+    preset = overrides.get("scene.preset", "")
+    items = dict(preset_keys(preset, f"{where} scene.preset")) if preset else {}
+    items.update(overrides)
+    for key, value in items.items():
+        section, _, name = key.partition(".")
+        table = data.setdefault(section, {})
+        if not isinstance(table, dict):
+            from dem_taichi.sections import SceneError
+
+            raise SceneError(f"[{section}] must be a table")
+        table[name] = value
+    return data
