@@ -6,6 +6,11 @@ in its own process and hands back a :class:`BranchOutcome` (its history records 
 :class:`RunLog`); :func:`run_branches_in_processes` runs them in spawned processes (Taichi's
 runtime must not be forked) and merges the outcomes into the run's writers and log in the order
 of the serial run, which they equal (the serial engine is deterministic).
+
+Each finished branch's outcome is also saved in the run's ``resume/`` folder
+(:mod:`dem_taichi.protocol_resume`), by the process that ran it (:func:`run_branch`, or
+:func:`run_branch_saved` in the serial run), so that an interrupted run resumes with only the
+branches still missing.
 """
 
 from __future__ import annotations
@@ -16,10 +21,13 @@ from pathlib import Path
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import ProtocolConfig, probing_settings, protocol_settings
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog
+from dem_taichi.protocol_resume import RecordingWriter, save_branch
 
 __all__ = [
     "branch_names",
     "run_branch_on",
+    "run_branch_saved",
+    "merge_branch",
     "BranchOutcome",
     "run_branch",
     "run_branches_in_processes",
@@ -80,10 +88,13 @@ def run_branch(
     precision: str,
     out_dir: str | None,
     progress: bool,
+    index: int | None = None,
+    resume_dir: str | None = None,
 ) -> BranchOutcome:
     """Run one branch from the checkpoint of state A in this process (a worker of
     :func:`dem_taichi.protocol.run_protocol`); the scene, with its protocol and probing
-    sections, comes from the checkpoint."""
+    sections, comes from the checkpoint. With ``resume_dir`` the outcome is saved there as the
+    ``index``-th branch (:func:`dem_taichi.protocol_resume.save_branch`)."""
     from dem_taichi.engine import Simulation
     from dem_taichi.probing import ProbeRecorder
 
@@ -98,10 +109,39 @@ def run_branch(
     log.states["A"] = state_A
     run_branch_on(runner, branch)
     del log.states["A"]
-    return BranchOutcome(branch=branch, history=list(history), log=log)
+    outcome = BranchOutcome(branch=branch, history=list(history), log=log)
+    if resume_dir is not None and index is not None:
+        save_branch(resume_dir, index, outcome)
+    return outcome
 
 
-def _merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
+def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, resume_dir) -> None:
+    """Run one branch on the serial ``runner`` as :func:`run_branch_on` does (its records reach
+    the run's writers as they come), with a log of its own merged into the run's at the end,
+    and save its outcome as the ``index``-th branch in ``resume_dir``."""
+    main_log, history, relaxed = runner.log, runner.history, runner.relaxed_writer
+    recorder = runner.probe_hook
+    log = RunLog()
+    log.states["A"] = main_log.states["A"]
+    recording = RecordingWriter(history) if history is not None else None
+    runner.log, runner.history = log, recording
+    if recorder is not None:
+        recorder.log = log
+    try:
+        run_branch_on(runner, branch)
+    finally:
+        runner.log, runner.history = main_log, history
+        if recorder is not None:
+            recorder.log = main_log
+        runner.relaxed_writer = relaxed
+    del log.states["A"]
+    main_log.merge(log)
+    records = recording.records if recording is not None else []
+    save_branch(resume_dir, index, BranchOutcome(branch=branch, history=records, log=log))
+
+
+def merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
+    """Write a branch's records into the run's writers and merge its log into the run's."""
     for record in outcome.history:
         history.append(record)
     for state in outcome.log.path_states:
@@ -110,14 +150,16 @@ def _merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
 
 
 def run_branches_in_processes(
-    runner, history, relaxed, branches, workers, arch, precision, progress
+    runner, history, relaxed, branches, workers, arch, precision, progress, done=None
 ) -> None:
     """Run the branches from A in ``workers`` spawned processes and merge them in order into
     ``history``, ``relaxed`` (the writers of history.nc and relaxed_states.nc) and
     ``runner.log`` (where the probe recorder of the run writes too).
 
     A branch that fails does not lose the others: the finished ones are merged (their records
-    reach history.nc and relaxed_states.nc), then the first failure is raised.
+    reach history.nc and relaxed_states.nc), then the first failure is raised. ``done``: branch
+    name → saved :class:`BranchOutcome` of a resumed run; those are merged in their place, not
+    run again. Every branch run here saves its outcome in ``<run>/resume/``.
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -126,19 +168,25 @@ def run_branches_in_processes(
     if checkpoint is None:
         checkpoint = str(runner.sim.save_checkpoint(Path(runner.out_dir) / "state_A.npz"))
     out_dir = str(runner.out_dir) if runner.config.save_states else None
-    runner._say(f"[branches] {', '.join(branches)} from A in {workers} processes")
+    resume_dir = str(runner.out_dir)
+    done = done or {}
+    todo = [b for b in branches if b not in done]
+    runner._say(f"[branches] {', '.join(todo)} from A in {workers} processes")
     context = multiprocessing.get_context("spawn")  # Taichi's runtime must not be forked
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        futures = [
-            pool.submit(
-                run_branch, b, checkpoint, runner.states["A"], arch, precision, out_dir, progress
+        futures = {
+            b: pool.submit(
+                run_branch, b, checkpoint, runner.states["A"], arch, precision, out_dir,
+                progress, index, resume_dir,
             )
-            for b in branches
-        ]
+            for index, b in enumerate(branches)
+            if b not in done
+        }  # fmt: skip
         errors = []
-        for branch, future in zip(branches, futures, strict=True):
+        for branch in branches:
             try:
-                _merge_branch(runner, history, relaxed, future.result())
+                outcome = done[branch] if branch in done else futures[branch].result()
+                merge_branch(runner, history, relaxed, outcome)
             except Exception as exc:  # noqa: BLE001 - keep the other branches, raise below
                 errors.append((branch, exc))
     if errors:

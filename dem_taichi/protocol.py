@@ -44,7 +44,9 @@ coordination number, UFR unbalanced-force ratio, I inertial number.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import signal
 import sys
 import time
 from pathlib import Path
@@ -52,8 +54,9 @@ from pathlib import Path
 from dem_taichi.branches import (
     BranchOutcome,
     branch_names,
+    merge_branch,
     run_branch,
-    run_branch_on,
+    run_branch_saved,
     run_branches_in_processes,
 )
 from dem_taichi.config import Scene, load_scene, scene_to_toml
@@ -67,6 +70,14 @@ from dem_taichi.protocol_records import (
     RunLog,
     StageRecord,
     _jsonable,
+)
+from dem_taichi.protocol_resume import (
+    RecordingWriter,
+    StageA,
+    load_branches,
+    load_stage_a,
+    save_stage_a,
+    saved_summary,
 )
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.servo import SecantStiffness
@@ -113,6 +124,7 @@ def run_protocol(
     command: str = "dem_taichi.protocol.run_protocol",
     workers: int = 1,
     overwrite: bool = False,
+    resume: bool = False,
 ) -> ProtocolResult:
     """Run the whole protocol of a scene and write its results to ``out_dir``.
 
@@ -128,6 +140,11 @@ def run_protocol(
     ``out_dir`` must not hold a run already (:mod:`dem_taichi.io.run_directory`: ``run.json``,
     ``history.nc`` or ``checkpoints/``) unless ``overwrite``, which deletes that run's files
     first; the run's id and scene hash are written to ``out_dir/run.json``.
+
+    ``resume`` continues the interrupted protocol run in ``out_dir`` (the same scene only):
+    from its saved state A, running only the branches without a saved outcome
+    (:mod:`dem_taichi.protocol_resume`); the outputs equal those of an uninterrupted run. A run
+    stopped before A starts again from the gas.
     """
     from dem_taichi.engine import Simulation
     from dem_taichi.io import (
@@ -137,6 +154,7 @@ def run_protocol(
         write_configuration,
         write_dataset,
     )
+    from dem_taichi.io.run_directory import reopen_run
     from dem_taichi.probing import ProbeRecorder, probes_dataset
 
     start = time.perf_counter()
@@ -147,9 +165,19 @@ def run_protocol(
     scene = _with_pattern(scene, pattern)
     config = protocol_settings(scene)
     probing = probing_settings(scene)
-    run_dir = start_run(
-        out_dir, "protocol", scene.scene.name, scene_to_toml(scene), overwrite=overwrite
-    )
+    if resume and overwrite:
+        raise ValueError(
+            "resume and overwrite exclude each other: resume continues the run in out_dir, "
+            "overwrite replaces it; give one of them"
+        )
+    if resume:
+        run_dir = reopen_run(out_dir, "protocol", scene.scene.name, scene_to_toml(scene))
+        saved_a = load_stage_a(run_dir.path)
+    else:
+        run_dir = start_run(
+            out_dir, "protocol", scene.scene.name, scene_to_toml(scene), overwrite=overwrite
+        )
+        saved_a = None
     out = run_dir.path
     effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
     log = RunLog()  # the one log of the run: the runner and the probe recorder write it
@@ -191,20 +219,45 @@ def run_protocol(
     relaxed = HistoryWriter(
         out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1, variables=variables
     )
+    recording, recording_relaxed = RecordingWriter(history), RecordingWriter(relaxed)
     runner = ProtocolRunner(
-        sim, config, probing, history, relaxed, probe_hook=recorder, progress=progress, log=log
+        sim, config, probing, recording, recording_relaxed, recorder, progress, log=log
     )
     runner.out_dir = out
     branches = branch_names(config)
+    done = {}
     try:
-        history.append(sim.measure() | {"stage": "gas"})
-        runner.compress_to_transition()
+        if saved_a is None:
+            recording.append(sim.measure() | {"stage": "gas"})
+            runner.compress_to_transition()
+            save_stage_a(
+                out,
+                StageA(
+                    recording.records,
+                    recording_relaxed.records,
+                    log,
+                    runner.state_A,
+                    time.perf_counter() - start,
+                ),
+            )
+        else:
+            start -= saved_a.seconds  # the wall time counts the run's time up to A
+            _restore_stage_a(runner, saved_a, history, relaxed)
+            done = load_branches(out, branches)
+            runner._say(
+                f"[resume] from state A; branches done: {', '.join(done) or 'none'}; to run: "
+                + (", ".join(b for b in branches if b not in done) or "none")
+            )
+        runner.history, runner.relaxed_writer = history, relaxed
         if workers == 1 or len(branches) < 2:
-            for branch in branches:
-                run_branch_on(runner, branch)
+            for index, branch in enumerate(branches):
+                if branch in done:
+                    merge_branch(runner, history, relaxed, done[branch])
+                else:
+                    run_branch_saved(runner, branch, index, out)
         else:
             run_branches_in_processes(
-                runner, history, relaxed, branches, workers, arch, precision, progress
+                runner, history, relaxed, branches, workers, arch, precision, progress, done
             )
     finally:
         history.close()
@@ -257,6 +310,19 @@ def run_protocol(
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
     result.files["summary"] = str(out / "summary.json")
     return result
+
+
+def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) -> None:
+    """Put a resumed run where it was at state A: the history files' records up to A written
+    again, the run's log at A, the engine's state at A."""
+    for record in saved.history:
+        history.append(record)
+    for record in saved.relaxed:
+        relaxed.append(record)
+    for f in dataclasses.fields(saved.log):
+        setattr(runner.log, f.name, getattr(saved.log, f.name))
+    runner.sim.set_state(saved.state)
+    runner.state_A = saved.state
 
 
 def _write_paraview(out: Path, log: RunLog) -> None:
@@ -327,26 +393,61 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         help="override a scene key, e.g. --set protocol.radial_stress_ratios='\"0.3\"' or "
         "--set scene.seed=4 (repeatable; validated as the file)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted run in --out (the same scene and options): from its "
+        "saved state A, only the branches not finished (dem_taichi.protocol_resume)",
+    )
     add_preset_option(parser)
     add_common_flags(parser)
     return parser
 
 
 def _main(argv: list[str], prog: str) -> int:
+    from tiv_model.command_line import UsageError
+
     args = _parser(prog).parse_args(argv)
     command = f"{prog} " + " ".join(argv)
     scene = scene_from_options(args.scene, args.preset, args.set)
-    result = run_protocol(
-        scene,
-        args.out,
-        arch=args.arch,
-        precision=args.precision,
-        progress=not args.quiet,
-        pattern=args.pattern,
-        command=command,
-        workers=args.workers,
-        overwrite=args.overwrite,
-    )
+    if args.resume and args.overwrite:
+        raise UsageError(
+            "--resume and --overwrite exclude each other: --resume continues the run in --out, "
+            "--overwrite replaces it; give one of them"
+        )
+    received: list[int] = []
+
+    def on_signal(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result = run_protocol(
+            scene,
+            args.out,
+            arch=args.arch,
+            precision=args.precision,
+            progress=not args.quiet,
+            pattern=args.pattern,
+            command=command,
+            workers=args.workers,
+            overwrite=args.overwrite,
+            resume=args.resume,
+        )
+    except KeyboardInterrupt:
+        name = signal.Signals(received[0]).name if received else "SIGINT"
+        again = [a for a in argv if a != "--overwrite"] + ([] if args.resume else ["--resume"])
+        saved = saved_summary(args.out, branch_names(protocol_settings(scene)))
+        print(
+            f"{prog}: {name}: stopped; {saved} in {Path(args.out) / 'resume'}; continue with: "
+            f"{prog} {' '.join(again)}",
+            file=sys.stderr,
+        )
+        return 128 + (received[0] if received else signal.SIGINT)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     if args.quiet:
         return 0
     print(f"protocol done in {result.total_seconds:.1f} s; results in {result.out_dir}")
@@ -365,7 +466,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.protoc
 
     One error handler (:mod:`tiv_model.command_line`): bad input is one line with exit code 2,
     a stage that cannot reach its goal (:class:`ProtocolError`) exit code 1, a blow-up exit
-    code 3, Ctrl-C exit code 130 (the files written so far are closed).
+    code 3. SIGINT (Ctrl-C) or SIGTERM stops the run: the files written so far are closed and
+    one line says what is saved and the command that resumes it (``--resume``); exit code
+    128 + the signal (130, 143).
     """
     from dem_taichi.failures import BlowUpError, CapacityError
     from dem_taichi.io import CheckpointError

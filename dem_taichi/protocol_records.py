@@ -64,6 +64,15 @@ class StageRecord:
     n_loading_checks: int = 0
     n_loading_checks_above_limit: int = 0
 
+    def add(self, other: StageRecord) -> None:
+        """Add another record of the same stage (a later path of it): sums and maxima."""
+        for name in ("seconds", "steps", "n_relaxed_states", "servo_iterations",
+                     "n_loading_checks", "n_loading_checks_above_limit"):  # fmt: skip
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        for name in ("max_inertial_number", "max_unbalanced_force_loading",
+                     "max_unbalanced_force_relaxed"):  # fmt: skip
+            setattr(self, name, max(getattr(self, name), getattr(other, name)))
+
     def note(self, measures: Measures, relaxed: bool, ufr_limit: float = math.inf) -> None:
         """Keep the maxima of I (states with p > 0 only: I is undefined in a gas) and UFR."""
         i = measures.get("inertial_number", float("nan"))
@@ -121,7 +130,11 @@ class RunLog:
         the same name; its states must not repeat A, which this log already holds."""
         self.path_states.extend(branch.path_states)
         self.states.update(branch.states)
-        self.stages.update(branch.stages)
+        for name, record in branch.stages.items():
+            if name in self.stages:  # the radial paths share one stage: add them up
+                self.stages[name].add(record)
+            else:
+                self.stages[name] = record
         self.configurations.update(branch.configurations)
         self.snapshots.update(branch.snapshots)
         self.checkpoints.update(branch.checkpoints)

@@ -26,10 +26,11 @@ What a sweep writes in ``DIR``:
 
 A failed member (an exception in its protocol, or its worker process dying) is recorded with
 its error and does not stop the others; the exit code is then 1. A re-run of the same sweep
-skips the members that are done (same scene hash) and runs the others again: the protocol has
-no resume from checkpoints (its paths keep servo and probe state in memory), so an unfinished
-or failed member is run again from scratch. A member done with another scene than the sweep
-file now gives it is refused unless ``--overwrite``. ``summarise`` and
+skips the members that are done (same scene hash) and runs the others again: an unfinished
+or failed member that had reached state A resumes from there, with the branches from A it had
+finished (:mod:`dem_taichi.protocol_resume`); one stopped before A starts again from the gas.
+A member done with another scene than the sweep file now gives it is refused unless
+``--overwrite``. ``summarise`` and
 :func:`dem_taichi.sweep_results.open_sweep` read the finished members
 (:mod:`dem_taichi.sweep_results`).
 """

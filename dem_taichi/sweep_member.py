@@ -99,6 +99,19 @@ def _publisher(name: str):
     return publish
 
 
+def _resumable(out: Path, scene_sha256: str) -> bool:
+    """Whether the unfinished member run in ``out`` can resume: its protocol saved state A
+    (:mod:`dem_taichi.protocol_resume`) and its run record holds this member's scene."""
+    from dem_taichi.protocol_resume import RESUME_DIR
+
+    record = read_json(out / "run.json")
+    return (
+        (out / RESUME_DIR / "A.pkl").exists()
+        and record is not None
+        and record.get("scene_sha256") == scene_sha256
+    )
+
+
 def run_member(
     name: str,
     scene_toml: str,
@@ -111,10 +124,11 @@ def run_member(
     """Run one member's protocol into ``run_dir`` (on a Dask worker, or anywhere).
 
     An unfinished run of the member in ``run_dir`` (one whose ``member.json`` is not ``done``)
-    is deleted first: the protocol starts from scratch. Returns the member record written to
-    ``run_dir/member.json``: status ``done`` or ``failed`` (with ``error``, one line, and
-    ``traceback``), ``seconds``, ``worker``, ``started``, ``finished``. Never raises for a
-    failure of the run itself.
+    resumes from its saved state A and finished branches when it has them and the same scene
+    (:mod:`dem_taichi.protocol_resume`); else it is deleted and the protocol starts afresh.
+    Returns the member record written to ``run_dir/member.json``: status ``done`` or
+    ``failed`` (with ``error``, one line, and ``traceback``), ``seconds``, ``worker``,
+    ``started``, ``finished``, ``resumed``. Never raises for a failure of the run itself.
     """
     from dem_taichi.config import scene_from_toml
     from dem_taichi.protocol import run_protocol
@@ -123,26 +137,31 @@ def run_member(
     out = Path(run_dir)
     with _MEMBER_LOCK:
         old = read_json(out / MEMBER_RECORD)
+        sha = Member(name, {}, {}, scene_toml).scene_sha256
+        resume = False
         if out.exists() and any(out.iterdir()):
             if old is None or old.get("status") == "done":
                 raise SweepError(f"{out} holds a run this sweep did not leave unfinished")
-            shutil.rmtree(out)
+            resume = _resumable(out, sha)
+            if not resume:
+                shutil.rmtree(out)
         out.mkdir(parents=True, exist_ok=True)
         record: dict[str, Any] = {
             "name": name,
             "status": "running",
-            "scene_sha256": Member(name, {}, {}, scene_toml).scene_sha256,
+            "scene_sha256": sha,
             "started": now(),
+            "resumed": resume,
             "worker": f"{socket.gethostname()}:{os.getpid()}",
             "arch": arch,
             "precision": precision,
         }
         write_json(out / MEMBER_RECORD, record)
-        publish("started", record["worker"])
+        publish("started", record["worker"] + (" (resumed from state A)" if resume else ""))
         start = time.perf_counter()
         try:
             with (
-                open(out / "progress.log", "w") as log,
+                open(out / "progress.log", "a" if resume else "w") as log,
                 contextlib.redirect_stderr(_ProgressStream(log, lambda t: publish("line", t))),
             ):
                 result = run_protocol(
@@ -153,6 +172,7 @@ def run_member(
                     progress=True,
                     command=command,
                     workers=workers,
+                    resume=resume,
                 )
             record["status"] = "done"
             record["states"] = sorted(result.states)

@@ -47,6 +47,7 @@ __all__ = [
     "scene_sha256",
     "start_run",
     "resume_run",
+    "reopen_run",
     "is_used",
 ]
 
@@ -67,6 +68,8 @@ RUN_FILE_PATTERNS = (
     "state_*.npz",
     "path_*.npz",
     "checkpoints",
+    "resume",
+    "paraview",
 )
 _USED_MARKERS = (RUN_RECORD, "history.nc", "checkpoints")
 
@@ -290,3 +293,31 @@ def resume_run(
         )
     run.save()  # an adopted directory gets its record now
     return run, latest
+
+
+def reopen_run(
+    directory: str | os.PathLike[str], command: str, scene_name: str, scene_toml: str
+) -> RunDirectory:
+    """The run of ``directory`` for a resume of ``command`` (``protocol``), checked against the
+    scene given: refused when there is no run record, when it is another command's run, or
+    when the scene differs from the run's (by hash)."""
+    folder = Path(directory)
+    record = _read_record(folder) if folder.is_dir() else None
+    if record is None:
+        raise RunDirectoryError(
+            f"--resume: {folder} holds no run to continue (no {RUN_RECORD}); start a fresh run "
+            "without --resume"
+        )
+    if record.command != command:
+        raise RunDirectoryError(
+            f"--resume: {folder} holds {record.describe()}, not a {command} run; resume it with "
+            f"its own command or start a fresh {command} run in a new --out"
+        )
+    given = scene_sha256(scene_toml)
+    if given != record.scene_sha256:
+        raise RunDirectoryError(
+            f"--resume: the scene given ({scene_name!r}, sha256 {given[:12]}) is not the scene of "
+            f"{record.describe()} in {folder} (sha256 {record.scene_sha256[:12]}); give the "
+            "run's own scene or start a fresh run in a new --out"
+        )
+    return RunDirectory(folder, record)

@@ -267,3 +267,38 @@ name = "broken"
 def test_shipped_sweep_files_load(path):
     spec = load_sweep(path)
     assert spec.members and spec.name == path.stem
+
+
+def test_unfinished_member_resumes_from_its_saved_state_a(tmp_path, monkeypatch):
+    """A member that failed in its second branch from A (here: made to) is run again from the
+    saved state A with its finished first branch, not from the gas; then it is done."""
+    import dem_taichi.branches as branches
+    from dem_taichi.sweep_member import run_member
+
+    spec = sweep_from_toml(
+        '[sweep]\nscene = "smoke"\n' + REDUCED + '[sweep.grid]\n"scene.seed" = [1]\n'
+    )
+    member = spec.members[0]
+    out = tmp_path / "members" / member.name
+    original = branches.run_branch_on
+
+    def fail_at_k0(runner, branch):
+        if branch == "k0":
+            raise RuntimeError("made to fail")
+        return original(runner, branch)
+
+    monkeypatch.setattr(branches, "run_branch_on", fail_at_k0)
+    first = run_member(member.name, member.scene_toml, str(out))
+    assert first["status"] == "failed" and "made to fail" in first["error"]
+    assert (out / "resume" / "A.pkl").exists() and (out / "resume" / "branch_0.pkl").exists()
+    a_saved = (out / "resume" / "A.pkl").stat().st_mtime_ns
+
+    monkeypatch.setattr(branches, "run_branch_on", original)
+    second = run_member(member.name, member.scene_toml, str(out))
+    assert second["status"] == "done" and second["resumed"] is True
+    assert (out / "resume" / "A.pkl").stat().st_mtime_ns == a_saved  # A was not run again
+    assert (
+        "[resume] from state A; branches done: isotropic; to run: k0"
+        in (out / "progress.log").read_text()
+    )
+    assert sorted(second["states"]) == ["A", "B", "C"]

@@ -1,0 +1,132 @@
+"""Resuming an interrupted protocol run (dem_taichi.protocol_resume): bitwise, and refusals."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from dem_taichi.config import load_scene, scene_to_toml
+from dem_taichi.io.run_directory import RunDirectoryError
+
+from .test_protocol import REFERENCE, _assert_bitwise_equal, _outputs, smoke_protocol_scene
+
+
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """The smoke protocol of test_protocol stopped by a KeyboardInterrupt at the start of its
+    second branch (A→C), as Ctrl-C would: state A and the first branch (A→B) are saved."""
+    import dem_taichi.branches as branches
+    from dem_taichi.protocol import run_protocol
+
+    out = tmp_path_factory.mktemp("interrupted")
+    original = branches.run_branch_on
+
+    def stop_at_k0(runner, branch):
+        if branch == "k0":
+            raise KeyboardInterrupt
+        return original(runner, branch)
+
+    branches.run_branch_on = stop_at_k0
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(smoke_protocol_scene(), out)
+    finally:
+        branches.run_branch_on = original
+    return out
+
+
+def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
+    from dem_taichi.protocol_resume import saved_summary
+
+    assert (interrupted / "resume" / "A.pkl").exists()
+    assert (interrupted / "resume" / "branch_0.pkl").exists()
+    assert not (interrupted / "resume" / "branch_1.pkl").exists()
+    text = saved_summary(interrupted, ["isotropic", "k0", "radial 1 0.4"])
+    assert text == "state A and 1 of 3 branches from A are saved"
+    assert not (interrupted / "summary.json").exists()
+
+
+def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
+    """The resume runs A→C, C→B and the radial path from the saved A, writes the history files
+    again from the saved records: every output equals the reference run's bit for bit."""
+    from dem_taichi.protocol import run_protocol
+
+    result = run_protocol(smoke_protocol_scene(), interrupted, resume=True)
+    assert (interrupted / "summary.json").exists()
+    assert list(result.states) == ["A", "B", "C", "B'", "R1_end"]
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+
+
+def test_resume_refuses_another_scene_and_a_directory_without_a_run(tmp_path, interrupted):
+    from dem_taichi.protocol import run_protocol
+
+    other = smoke_protocol_scene(path_increments=3)
+    with pytest.raises(RunDirectoryError, match="is not the scene of run"):
+        run_protocol(other, interrupted, resume=True)
+    with pytest.raises(RunDirectoryError, match="holds no run to continue"):
+        run_protocol(smoke_protocol_scene(), tmp_path / "empty", resume=True)
+    with pytest.raises(ValueError, match="exclude each other"):
+        run_protocol(smoke_protocol_scene(), interrupted, resume=True, overwrite=True)
+
+
+def test_resume_refuses_a_run_of_another_command(tmp_path):
+    from dem_taichi.io.run_directory import reopen_run, start_run
+
+    toml = scene_to_toml(load_scene("smoke"))
+    start_run(tmp_path, "run", "smoke", toml)
+    with pytest.raises(RunDirectoryError, match="not a protocol run"):
+        reopen_run(tmp_path, "protocol", "smoke", toml)
+
+
+def test_command_line_resume_of_nothing_is_one_line(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(tmp_path / "x")]
+        + ["--resume"],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2
+    assert "holds no run to continue" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_resume_in_worker_processes_merges_saved_and_new_branches(interrupted):
+    """With workers=2 the missing branches run in spawned processes and merge in their place
+    among the saved ones: the outputs again equal the reference bit for bit."""
+    from dem_taichi.protocol import run_protocol
+
+    for index in (1, 2):
+        (interrupted / "resume" / f"branch_{index}.pkl").unlink(missing_ok=True)
+    result = run_protocol(smoke_protocol_scene(), interrupted, resume=True, workers=2)
+    assert (interrupted / "resume" / "branch_2.pkl").exists()
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+
+
+def test_sigint_on_the_command_line_then_resume(tmp_path):
+    """Ctrl-C (SIGINT) once state A is saved: exit code 130, one line that says what is saved
+    and the command that resumes; that command then finishes the run."""
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(out), "--quiet"]
+    args += ["--set", "probing.dynamic=false", "--set", "protocol.path_increments=1"]
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 600
+    while not (out / "resume" / "A.pkl").exists() and proc.poll() is None:
+        assert time.monotonic() < deadline, "state A not reached in 10 min"
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=600)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert "SIGINT: stopped; state A and" in lines[0] and "--resume" in lines[0]
+    assert f"continue with: python -m dem_taichi protocol smoke --out {out}" in lines[0]
+    assert lines[0].endswith("--resume")
+    resumed = subprocess.run(args + ["--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    assert (out / "summary.json").exists()
