@@ -105,6 +105,7 @@ def run_branch(
     recorder = ProbeRecorder(probing, config, log)
     runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress, log=log)
     runner.out_dir = Path(out_dir) if out_dir is not None else None
+    runner.bars = False  # beside other branch processes on one terminal: lines, not bars
     runner.state_A = sim.get_state()
     log.states["A"] = state_A
     run_branch_on(runner, branch)

@@ -42,6 +42,7 @@ import numpy as np
 from dem_taichi.analysis import Transition, detect_transition
 from dem_taichi.io.vtk_snapshots import simulation_snapshot
 from dem_taichi.measures import Measures
+from dem_taichi.progress import StageProgress, use_bars
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
@@ -85,6 +86,8 @@ class ProtocolRunner:
         self.state_C: dict | None = None
         self._since_output = 0
         self.out_dir: Path | None = None
+        self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)
+        self._stage: StageProgress | None = None
         self.stress_servo = StressServo(sim, config, self._relax, self._output, self._say)
 
     # -- the log's entries, read here -------------------------------------------------------
@@ -123,8 +126,23 @@ class ProtocolRunner:
 
     # -- helpers ----------------------------------------------------------------------------
     def _say(self, text: str) -> None:
-        if self.progress:
+        if not self.progress:
+            return
+        if self._stage is not None:
+            self._stage.write(text)  # above the stage's bar
+        else:
             print(text, file=sys.stderr, flush=True)
+
+    def _begin_stage(self, tag: str, total: int | None) -> StageProgress:
+        """The progress of a stage of ``total`` increments (:mod:`dem_taichi.progress`)."""
+        self._end_stage()
+        self._stage = StageProgress(tag, total, self.progress, self.bars)
+        return self._stage
+
+    def _end_stage(self) -> None:
+        if self._stage is not None:
+            self._stage.close()
+            self._stage = None
 
     def _record(self, stage: str) -> StageRecord:
         return self.log.stage(stage)
@@ -215,6 +233,7 @@ class ProtocolRunner:
         candidate: tuple[dict, Measures] | None = None
         confirmed = 0
         sequence = self.compression_sequence
+        progress = self._begin_stage(stage, None)  # the number of increments is not known
         for increment in range(c.max_compression_increments):
             p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
             rate_p = p_now if p_now > tol else 0.0
@@ -234,10 +253,11 @@ class ProtocolRunner:
             is_candidate = loaded and measures["mechanical_coordination_number"] >= (
                 c.coordination_min
             )
-            self._say(
+            progress.step(
+                increment,
                 f"[{stage}] inc {increment} h={h:.4g} v={measures['specific_volume']:.4f} "
                 f"p={measures['mean_stress']:.4g} "
-                f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}"
+                f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}",
             )
             if candidate is None:
                 resolved = measures["mean_stress"] <= c.transition_pressure_factor * tol
@@ -315,6 +335,7 @@ class ProtocolRunner:
         state = self._path_state("A", stage, len(sequence), (math.nan, math.nan), a_measures, True)
         self.state_A = sim.get_state()
         record.seconds += time.perf_counter() - t0
+        self._end_stage()
         self._say(
             f"[A] p={a_measures['mean_stress']:.4g} v={a_measures['specific_volume']:.4f} "
             f"Zm={a_measures['mechanical_coordination_number']:.3f}"
@@ -395,6 +416,7 @@ class ProtocolRunner:
         self._check_start(p_a)
         n = self.config.path_increments
         ratio = (p_end / p_a) ** (1.0 / n)
+        progress = self._begin_stage(stage, n)
         state = None
         k = 0
         while True:
@@ -413,10 +435,11 @@ class ProtocolRunner:
                 target_pair = (math.nan, measures["stress_yy"])
             self._record(stage).servo_iterations += it
             state = self._path_state("C" if last else "", stage, k, target_pair, measures, True, it)
-            self._say(
+            progress.step(
+                k,
                 f"[{stage}] {k} p={measures['mean_stress']:.4g} "
                 f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f} "
-                f"fabric={measures['fabric_deviator']:.4f}"
+                f"fabric={measures['fabric_deviator']:.4f}",
             )
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
@@ -424,6 +447,7 @@ class ProtocolRunner:
             if last:
                 break
         self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
         self.state_C = self.sim.get_state()
         assert state is not None
         return state
@@ -438,6 +462,7 @@ class ProtocolRunner:
         measures = self.states["C"].measures
         p_c, q_c = measures["mean_stress"], measures["deviatoric_stress"]
         n = self.config.unloading_increments
+        progress = self._begin_stage(stage, n)
         state = None
         for k in range(1, n + 1):
             q = q_c * (1.0 - k / n)
@@ -446,14 +471,16 @@ class ProtocolRunner:
             self._record(stage).servo_iterations += it
             label = "B'" if k == n else ""
             state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
-            self._say(
+            progress.step(
+                k,
                 f"[{stage}] {k}/{n} p={measures['mean_stress']:.4g} "
-                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f}"
+                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f}",
             )
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
             t0 = time.perf_counter()
         self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
         assert state is not None
         return state
 
@@ -469,6 +496,7 @@ class ProtocolRunner:
         p_a = measures["mean_stress"]
         self._check_start(p_a)
         n = self.config.path_increments
+        progress = self._begin_stage(tag, n)
         state = None
         for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
             targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
@@ -476,10 +504,11 @@ class ProtocolRunner:
             self._record(stage).servo_iterations += it
             label = end_label if k == n else ""
             state = self._path_state(label, stage, k, targets, measures, True, it)
-            self._say(f"[{tag}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            progress.step(k, f"[{tag}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
             t0 = time.perf_counter()
         self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
         assert state is not None
         return state
