@@ -1,7 +1,8 @@
 """Command line: ``python -m dem_taichi run|protocol|sweep ... [options]``.
 
 ``run`` and ``protocol`` take ``SCENE --out DIR``; ``sweep SWEEP.toml --out DIR`` runs protocol
-members on Dask (:mod:`dem_taichi.sweep`).
+members on Dask (:mod:`dem_taichi.sweep`); ``snapshot STATE.npz --out FILE.vtu`` writes the discs
+of any saved state (a checkpoint, a protocol's ``state_<label>.npz``) for ParaView.
 
 ``protocol`` runs the study's virtual experiments (gas -> A -> A-B, A-C, C-B, radial paths) with
 elastic probes, figures and a report; it takes the options of ``python -m dem_taichi.protocol``
@@ -20,7 +21,9 @@ strain-controlled isotropic compression at ``[control] compression_strain_rate``
   exactly, and only with the run's own scene;
 - ``scene.toml``: the full scene (every key);
 - ``run.json``: the run id and the scene's hash (:mod:`dem_taichi.io.run_directory`): a fresh
-  run into a used ``--out`` is refused unless ``--overwrite``.
+  run into a used ``--out`` is refused unless ``--overwrite``;
+- with ``--paraview``: ``paraview/step_<step>.vtu`` at every checkpoint and at the end, listed
+  in ``paraview/run.pvd`` (:mod:`dem_taichi.io.vtk_snapshots`).
 
 SIGINT (Ctrl-C) or SIGTERM stops the run at the next output step: a checkpoint is written, the
 history closed, and one line says how to resume; the exit code is 128 + the signal (130 for
@@ -143,6 +146,40 @@ def _run(args: argparse.Namespace) -> int:
     return _simulate(args, scene, run_dir, latest)
 
 
+def _snapshot(args: argparse.Namespace) -> int:
+    """``snapshot STATE.npz --out FILE.vtu``: the discs of a saved state for ParaView."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.io.vtk_snapshots import write_simulation_snapshot
+
+    source = Path(args.state)
+    if not source.is_file():
+        raise UsageError(
+            f"{source}: no such file; give a checkpoint (checkpoints/checkpoint_<step>.npz) or "
+            "a protocol state (state_<label>.npz, path_<stage>_<k>.npz)"
+        )
+    target = Path(args.out)
+    if target.suffix != ".vtu":
+        raise UsageError(f"--out {target}: the snapshot is a VTK file: give a name ending .vtu")
+    sim = Simulation.from_checkpoint(source, arch=args.arch)
+    m = sim.measure()
+    fields = {k: float(m[k]) for k in ("mean_stress", "deviatoric_stress", "specific_volume")}
+    path = write_simulation_snapshot(target, sim, stage=args.stage, fields=fields)
+    if not args.quiet:
+        print(f"{path}: {sim.n_bodies} bodies at step {sim.step} (open it in ParaView)")
+    return 0
+
+
+def _paraview(sim, out: Path, stage: str) -> None:
+    """``--paraview``: the discs now as ``paraview/step_<step>.vtu``, listed in ``run.pvd``."""
+    from dem_taichi.io.vtk_snapshots import read_pvd, write_pvd, write_simulation_snapshot
+
+    folder = out / "paraview"
+    path = write_simulation_snapshot(folder / f"step_{sim.step:010d}.vtu", sim, stage=stage)
+    series = folder / "run.pvd"
+    files = [(n, f) for n, f in read_pvd(series) if f != path] if series.exists() else []
+    write_pvd(series, [*files, (f"step {sim.step}", path)])
+
+
 def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | None) -> int:
     import taichi as ti
 
@@ -214,6 +251,8 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
                         run_dir.add_checkpoint(
                             sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
                         )
+                        if args.paraview:
+                            _paraview(sim, out, stage)
                 if bar is not None:
                     bar.close()
                 start = start + n_steps
@@ -226,6 +265,8 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
             history.append(sim.measure())
     path = sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
     run_dir.add_checkpoint(path)
+    if args.paraview:
+        _paraview(sim, out, stage if schedule else "gas")  # the stage the run ended in
     if stop.received is not None:
         name = signal.Signals(stop.received).name
         print(
@@ -295,7 +336,28 @@ def _parser() -> ArgumentParser:
     run.add_argument(
         "--no-progress", dest="progress", action="store_false", help="no progress bars"
     )
+    run.add_argument(
+        "--paraview",
+        action="store_true",
+        help="also write the discs for ParaView at every checkpoint and at the end "
+        "(paraview/step_<step>.vtu and the series paraview/run.pvd; default: off)",
+    )
     add_common_flags(run, sub=True)
+    snap = sub.add_parser(
+        "snapshot",
+        help="write the discs of a saved state (checkpoint or state_<label>.npz) for ParaView",
+        description="Write the discs of a saved state as a VTK file for ParaView (rod id, "
+        "orientation, charge, force, torque per disc; dem_taichi.io.vtk_snapshots).",
+    )
+    snap.add_argument("state", help="checkpoint_<step>.npz, state_<label>.npz or path_*.npz")
+    snap.add_argument("--out", required=True, help="the .vtu file to write")
+    snap.add_argument(
+        "--stage",
+        default="gas",
+        help="stage label stored with the snapshot (default gas; e.g. A_to_C)",
+    )
+    snap.add_argument("--arch", choices=("cpu", "gpu"), default="cpu", help="device (cpu)")
+    add_common_flags(snap, sub=True)
     sub.add_parser(
         "protocol",
         add_help=False,
@@ -313,7 +375,7 @@ def _parser() -> ArgumentParser:
 
 def _command(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
-    return _run(args)
+    return _snapshot(args) if args.command == "snapshot" else _run(args)
 
 
 def main(argv: list[str] | None = None) -> int:

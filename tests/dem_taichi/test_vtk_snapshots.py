@@ -95,3 +95,30 @@ def test_bad_inputs_refused(tmp_path):
         write_simulation_snapshot(tmp_path / "a.vtk", sim, "A_to_B")
     with pytest.raises(ValueError, match="unknown stage"):
         write_simulation_snapshot(tmp_path / "a.vtu", sim, "nowhere")
+
+
+def test_run_writes_paraview_series_and_snapshot_command_converts_a_state(tmp_path, capsys):
+    """``run --paraview`` writes a snapshot at every checkpoint and at the end, listed in
+    ``run.pvd``; ``snapshot STATE.npz --out F.vtu`` writes the discs of a saved state (on
+    request), equal to the run's own snapshot of that step; bad arguments are one line."""
+    from dem_taichi.cli import main
+
+    out = tmp_path / "run"
+    assert (
+        main(["run", "smoke", "--out", str(out), "--steps", "6000", "--paraview", "--quiet"]) == 0
+    )
+    series = read_pvd(out / "paraview" / "run.pvd")
+    steps = [name for name, _ in series]
+    assert steps == ["step 5000", "step 6000"]
+    checkpoint = sorted((out / "checkpoints").glob("checkpoint_*.npz"))[-1]
+    target = tmp_path / "state.vtu"
+    assert main(["snapshot", str(checkpoint), "--out", str(target), "--quiet"]) == 0
+    mine, theirs = meshio.read(target), meshio.read(series[-1][1])
+    np.testing.assert_array_equal(mine.points, theirs.points)
+    for name in ("rod_id", "angle", "charge", "body_force"):
+        np.testing.assert_array_equal(mine.point_data[name], theirs.point_data[name])
+    capsys.readouterr()
+    assert main(["snapshot", str(tmp_path / "none.npz"), "--out", str(target)]) == 2
+    assert main(["snapshot", str(checkpoint), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert "no such file" in err and "ending .vtu" in err and "Traceback" not in err
