@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 OUT    ?= results
 
-.PHONY: demo test test-slow test-all bench lint clean
+.PHONY: demo test test-slow test-all bench lint cf-check clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,14 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(PY) -m ruff check .
+
+# CF-1.11 check of the netCDF files we write: installs the optional extra 'cf' (the IOOS
+# compliance-checker, offline: it ships the standard-name table, cf-units bundles UDUNITS-2, so
+# no `apt-get install libudunits2-0` is needed), then runs only tests/test_cf_conventions.py
+# with the checker required. `make test` runs that file too, skipping the checker's part.
+cf-check: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[cf]'
+	CF_CHECK_REQUIRED=1 $(PY) -m pytest tests/test_cf_conventions.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

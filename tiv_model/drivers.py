@@ -394,6 +394,7 @@ def concatenate(datasets: list[xr.Dataset], names: list[str]) -> xr.Dataset:
         parts.append(part)
     out = xr.concat(parts, dim="step", combine_attrs="drop_conflicts")
     out = out.assign_coords(step=np.arange(out.sizes["step"]))
+    out["step"].attrs.update(datasets[0]["step"].attrs)  # assign_coords drops them (CF 3.1)
     out["stage"].attrs.update(
         {
             "long_name": "loading stage",

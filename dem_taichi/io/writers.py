@@ -95,6 +95,11 @@ def global_attrs(attrs: Mapping[str, Any] | None) -> dict[str, Any]:
 # ---------------------------------------------------------------------------------------------
 
 
+def _is_coordinate(var: Variable) -> bool:
+    """A CF coordinate variable: one dimension of its own name (``time``, ``amplitude``)."""
+    return var.dims == (var.name,)
+
+
 def _check_history_variables(variables: Iterable[Variable]) -> dict[str, Variable]:
     by_name = variables_by_name(tuple(variables))
     for var in by_name.values():
@@ -120,8 +125,11 @@ def _create_history_file(
     try:
         dataset.createDimension("time", None)
         for var in variables.values():
+            # CF 2.5.1: no _FillValue on a coordinate variable (``time``, always given); the
+            # netCDF default fill still pre-fills it, without the attribute.
+            fill = None if _is_coordinate(var) else var.fill_value
             ncvar = dataset.createVariable(
-                var.name, var.numpy_dtype, var.dims, fill_value=var.fill_value, **chunking
+                var.name, var.numpy_dtype, var.dims, fill_value=fill, **chunking
             )
             ncvar.setncatts(var.attrs())
         dataset.setncatts(dict(attrs))
@@ -426,6 +434,8 @@ def _encoding(ds: xr.Dataset, schema: Mapping[str, Variable]) -> dict[str, dict[
             continue
         if var.dtype == "str":
             encoding[str(name)] = {"dtype": str}
+        elif _is_coordinate(var):  # CF 2.5.1: no _FillValue on a coordinate variable
+            encoding[str(name)] = {"dtype": var.numpy_dtype, "_FillValue": None}
         else:
             encoding[str(name)] = {"dtype": var.numpy_dtype, "_FillValue": var.fill_value}
     return encoding
