@@ -50,6 +50,7 @@ from dem_taichi.config import (
     scene_from_toml,
     scene_to_toml,
 )
+from dem_taichi.cost import check_cost, cost_lines
 from dem_taichi.presets import add_preset_option, scene_from_options
 from tiv_model.command_line import (
     ArgumentParser,
@@ -110,6 +111,10 @@ class _StopSignals:
             signal.signal(signum, handler)
 
 
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
 def _checkpoint_scene(path: Path) -> str:
     """The full scene TOML of a checkpoint, rewritten by this code's ``scene_to_toml``."""
     from dem_taichi.io import checkpoint_meta
@@ -126,6 +131,7 @@ def _run(args: argparse.Namespace) -> int:
             "--overwrite replaces it; give one of them"
         )
     scene = scene_from_options(args.scene, args.preset, args.set)
+    cost = check_cost(scene, "run", args.precision)  # refuses what memory cannot hold
     v0 = 1.0 / scene.particles.initial_area_fraction
     if scene.control.target_specific_volume >= v0:
         raise UsageError(
@@ -143,7 +149,7 @@ def _run(args: argparse.Namespace) -> int:
             start_run(out, "run", scene.scene.name, scene_toml, args.overwrite, resume_hint=True),
             None,
         )
-    return _simulate(args, scene, run_dir, latest)
+    return _simulate(args, scene, run_dir, latest, cost)
 
 
 def _snapshot(args: argparse.Namespace) -> int:
@@ -180,7 +186,9 @@ def _paraview(sim, out: Path, stage: str) -> None:
     write_pvd(series, [*files, (f"step {sim.step}", path)])
 
 
-def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | None) -> int:
+def _simulate(
+    args: argparse.Namespace, scene: Scene, run_dir, latest: Path | None, cost=None
+) -> int:
     import taichi as ti
 
     from dem_taichi.engine import BlowUpError, CellControl, Simulation
@@ -196,6 +204,9 @@ def _simulate(args: argparse.Namespace, scene: Scene, run_dir, latest: Path | No
         sim = Simulation(
             scene, arch=args.arch, precision=args.precision, deterministic=args.deterministic
         )
+    if cost is not None and not args.quiet:  # once the engine is built: errors come first
+        for line in cost_lines(cost):
+            _say(line)
     (out / "scene.toml").write_text(scene_to_toml(scene))
     attrs = provenance_attrs(
         scene_toml=scene.source_text or scene_to_toml(scene),

@@ -146,6 +146,7 @@ def run_protocol(
     (:mod:`dem_taichi.protocol_resume`); the outputs equal those of an uninterrupted run. A run
     stopped before A starts again from the gas.
     """
+    from dem_taichi.cost import check_cost, cost_lines
     from dem_taichi.engine import Simulation
     from dem_taichi.io import (
         HistoryWriter,
@@ -165,6 +166,7 @@ def run_protocol(
     scene = _with_pattern(scene, pattern)
     config = protocol_settings(scene)
     probing = probing_settings(scene)
+    cost = check_cost(scene, "protocol", precision)  # refuses what memory cannot hold
     if resume and overwrite:
         raise ValueError(
             "resume and overwrite exclude each other: resume continues the run in out_dir, "
@@ -211,6 +213,9 @@ def run_protocol(
         "cell at the start of the run until state A, then the cell at state A"
     )
     sim = Simulation(scene, arch=arch, precision=precision)
+    if progress:  # once the engine is built: its errors come first
+        for line in cost_lines(cost):
+            print(line, file=sys.stderr, flush=True)
     recorder = ProbeRecorder(probing, config, log)
     attrs["rod_model"] = scene.particles.rod_model
     variables = sim.history_variables

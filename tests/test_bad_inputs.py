@@ -184,6 +184,13 @@ DEM_CASES = [
     Case("protocol-workers-text", "dem", (*PROTOCOL, "--workers", "two"), ("--workers", "not an integer"), smoke_with()),  # noqa: E501
     Case("protocol-pattern", "dem", (*PROTOCOL, "--pattern", "salty"), ("--pattern", "invalid choice", "acidic"), smoke_with()),  # noqa: E501
     Case("protocol-no-out", "dem", ("protocol", "smoke"), ("required", "--out")),
+    Case("run-memory-beyond-machine", "dem", (*RUN, "--set", "particles.n_rods=10000000"), ("n_rods = 10000000", "GiB, this machine has", "lower n_rods"), smoke_with()),  # noqa: E501
+    Case("protocol-memory-beyond-machine", "dem", (*PROTOCOL, "--set", "particles.n_rods=10000000"), ("GiB, this machine has", "--precision f32"), smoke_with()),  # noqa: E501
+    Case("run-preset-unknown", "dem", (*RUN, "--preset", "quick"), ("--preset", "invalid choice", "balanced"), smoke_with()),  # noqa: E501
+    Case("scene-preset-unknown", "dem", RUN, ("[scene] preset = 'quick'", "fast, balanced, accurate"), smoke_with(scene={"preset": "quick"})),  # noqa: E501
+    Case("protocol-resume-nothing", "dem", (*PROTOCOL, "--resume"), ("holds no run to continue",), smoke_with()),  # noqa: E501
+    Case("protocol-resume-and-overwrite", "dem", (*PROTOCOL, "--resume", "--overwrite"), ("exclude each other",), smoke_with()),  # noqa: E501
+    Case("snapshot-no-file", "dem", ("snapshot", "{out}/none.npz", "--out", "{out}/x.vtu"), ("no such file", "checkpoint"), smoke_with()),  # noqa: E501
     Case("protocol-empty-scene", "dem", PROTOCOL, ("is empty",), ""),
     Case("protocol-used-directory", "dem", PROTOCOL, ("already holds", "--overwrite"), smoke_with(), used_directory),  # noqa: E501
     Case("protocol-out-is-a-file", "dem", PROTOCOL, ("is a file",), smoke_with(), a_file_as_out),

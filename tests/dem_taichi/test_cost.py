@@ -1,0 +1,67 @@
+"""Cost estimates before a run (dem_taichi.cost): memory, steps, the refusal and the warning."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from dem_taichi.cli import builtin_schedule
+from dem_taichi.config import load_scene
+from dem_taichi.cost import LONG_RUN_SECONDS, check_cost, estimate_cost
+from dem_taichi.presets import with_preset
+
+
+def test_memory_estimate_brackets_the_engine_allocation():
+    """The arrays' bytes summed from the device-array table for the scene are those the engine
+    allocates, but for the neighbour capacity (taken at 1.5× its start value)."""
+    from dem_taichi.engine import Simulation
+
+    scene = load_scene("smoke")
+    sim = Simulation(scene)
+    allocated = sum(
+        math.prod(sim.a[name].shape) * (8 if "f64" in str(sim.a[name].dtype) else 4)
+        for name in sim.a
+    )
+    estimated = estimate_cost(scene, "run").memory_bytes
+    assert allocated <= estimated <= 2.0 * allocated
+
+
+def test_run_steps_are_the_builtin_schedule_and_time_grows_with_size():
+    scene = load_scene("default")
+    cost = estimate_cost(scene, "run")
+    assert cost.exact_steps and cost.steps == sum(n for _, n, _ in builtin_schedule(scene))
+    bigger = scene.replace(particles={"n_rods": 3000})
+    assert estimate_cost(bigger, "run").cpu_seconds > 2 * cost.cpu_seconds
+    assert estimate_cost(bigger, "run").memory_bytes > 5 * cost.memory_bytes
+
+
+def test_protocol_estimate_follows_the_knobs():
+    scene = load_scene("default")
+    base = estimate_cost(scene, "protocol")
+    assert not base.exact_steps
+    fast = estimate_cost(with_preset(scene, "fast"), "protocol")
+    accurate = estimate_cost(with_preset(scene, "accurate"), "protocol")
+    assert fast.steps < base.steps < accurate.steps
+    stiff = scene.replace(contact={"k_n": 1.0e7, "k_t": 2.0e6})  # Δt 10× smaller
+    assert estimate_cost(stiff, "protocol").steps == pytest.approx(10 * base.steps, rel=0.02)
+    # the measured default protocol (serial, seed 2): 8.2 M path steps, 33 min; within ×3
+    assert 8.2e6 / 3 < base.steps < 3 * 8.2e6
+    assert 33 * 60 / 3 < base.cpu_seconds < 3 * 33 * 60
+
+
+def test_memory_beyond_the_machine_is_refused_with_what_to_change():
+    scene = load_scene("paper")
+    with pytest.raises(ValueError, match=r"n_rods = 1520: the engine's arrays need .* GiB.*f32"):
+        check_cost(scene, "run", memory=1e6)
+
+
+def test_long_runs_get_a_warning_line_and_short_ones_only_the_estimate():
+    lines = []
+    check_cost(load_scene("smoke"), "run", say=lines.append)
+    assert len(lines) == 1 and lines[0].startswith("cost estimate: ")
+    lines.clear()
+    huge = load_scene("paper").replace(particles={"n_rods": 100_000})
+    cost = check_cost(huge, "protocol", say=lines.append)
+    assert cost.cpu_seconds > LONG_RUN_SECONDS
+    assert len(lines) == 2 and "long run" in lines[1] and "--preset fast" in lines[1]
