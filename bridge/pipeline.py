@@ -335,7 +335,10 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="calibrate on synthetic DEM-like results made by the TIV model",
     )
     parser.add_argument(
-        "--noise", type=_non_negative, default=0.0, help="noise of --synthetic data (0)"
+        "--noise",
+        type=_non_negative,
+        default=0.0,
+        help="relative noise of --synthetic data (default 0)",
     )
     parser.add_argument(
         "--stress-scale",
@@ -343,29 +346,74 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=None,
         help="kPa per DEM stress unit (default: the history's attribute)",
     )
-    parser.add_argument("--convention", default="triaxial", choices=("triaxial", "plane"))
     parser.add_argument(
-        "--fabric-scale", type=positive_float, default=1.0, help="F of the convention (1)"
+        "--convention",
+        default="triaxial",
+        choices=("triaxial", "plane"),
+        help="2D → 3D stress convention (bridge.series.Convention; default triaxial)",
     )
-    parser.add_argument("--probe-method", default="linear", choices=("linear", "dynamic"))
-    parser.add_argument("--anisotropy", default="A", choices=("A", "B"))
-    parser.add_argument("--no-constraint-forces", action="store_true")
-    parser.add_argument("--bound-law", default="exponential", choices=tuple(BOUND_LAWS))
     parser.add_argument(
-        "--reference-pressure", type=positive_float, default=100.0, help="p_r (kPa, 100)"
+        "--fabric-scale",
+        type=positive_float,
+        default=1.0,
+        help="F of the convention: β_model = −F (β_yy − β_xx) (default 1)",
+    )
+    parser.add_argument(
+        "--probe-method",
+        default="linear",
+        choices=("linear", "dynamic"),
+        help="which DEM moduli the elastic stage fits (default linear: the linear response)",
+    )
+    parser.add_argument(
+        "--anisotropy",
+        default="A",
+        choices=("A", "B"),
+        help="form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
+        "model.md §2; default A)",
+    )
+    parser.add_argument(
+        "--no-constraint-forces",
+        action="store_true",
+        help="set the constraint forces Λ_K to 0 (ModelOptions; default: the exact theory, "
+        "with them)",
+    )
+    parser.add_argument(
+        "--bound-law",
+        default="exponential",
+        choices=tuple(BOUND_LAWS),
+        help="law f(η) of the bounding fabric β_b = f(η) s/p (ModelOptions; default exponential)",
+    )
+    parser.add_argument(
+        "--reference-pressure",
+        type=positive_float,
+        default=100.0,
+        help="p_r of the elastic law in kPa (default 100)",
     )
     parser.add_argument("--fix", nargs="*", default=[], help="symbols held at Table 1 values")
     parser.add_argument("--fix-M", action="store_true", help="do not fit M (Table 1 value)")
-    parser.add_argument("--omega-stage", default="elastic", choices=("elastic", "fabric"))
+    parser.add_argument(
+        "--omega-stage",
+        default="elastic",
+        choices=("elastic", "fabric"),
+        help="the calibration stage that fits ω (default elastic)",
+    )
     parser.add_argument(
         "--initial-fabric",
         default="zero",
         choices=("zero", "measured"),
         help="model fabric at A: isotropic (zero) or the DEM's",
     )
-    parser.add_argument("--fabric-series", nargs="+", default=["fabric", "stress_ratio"])
     parser.add_argument(
-        "--passes", type=int_in_range(1, 1000), default=12, help="most cycles of coupled stages"
+        "--fabric-series",
+        nargs="+",
+        default=["fabric", "stress_ratio"],
+        help="series the fabric stage fits (default: fabric stress_ratio)",
+    )
+    parser.add_argument(
+        "--passes",
+        type=int_in_range(1, 1000),
+        default=12,
+        help="most cycles of coupled stages (default 12)",
     )
     parser.add_argument(
         "--max-k0-increments",
@@ -373,12 +421,24 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=12,
         help="most model increments per K0 fit run (12)",
     )
-    parser.add_argument("--k0-mode", default="element", choices=("element", "stress"))
-    parser.add_argument("--no-figures", action="store_true")
+    parser.add_argument(
+        "--k0-mode",
+        default="element",
+        choices=("element", "stress"),
+        help="K0 predictions by the K0 element test or driven by the DEM's stresses "
+        "(default element)",
+    )
+    parser.add_argument("--no-figures", action="store_true", help="no figures (default: drawn)")
     parser.add_argument(
         "--no-identifiability", action="store_true", help="skip the profile likelihoods"
     )
-    parser.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
+    parser.add_argument(
+        "--stages",
+        nargs="+",
+        default=list(STAGES),
+        choices=STAGES,
+        help=f"calibration stages to run (default: all, {' '.join(STAGES)})",
+    )
     add_common_flags(parser)
     return parser
 

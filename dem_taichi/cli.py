@@ -345,7 +345,10 @@ def _parser() -> ArgumentParser:
     )
     add_preset_option(run)
     run.add_argument(
-        "--no-progress", dest="progress", action="store_false", help="no progress bars"
+        "--no-progress",
+        dest="progress",
+        action="store_false",
+        help="no progress bars (default: bars on long stages)",
     )
     run.add_argument(
         "--paraview",
