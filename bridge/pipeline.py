@@ -338,7 +338,7 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         "--noise",
         type=_non_negative,
         default=0.0,
-        help="relative noise of --synthetic data (default 0)",
+        help="noise SD of --synthetic data: relative, absolute for the fabric (default 0)",
     )
     parser.add_argument(
         "--stress-scale",
