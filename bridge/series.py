@@ -498,7 +498,11 @@ def history_from_model(
         data[key] = ("time", np.concatenate(chunks), HISTORY[key].attrs())
     data["stage"] = ("time", np.concatenate(stages), HISTORY["stage"].attrs())
     data["step"] = ("time", np.arange(n, dtype=np.int64), HISTORY["step"].attrs())
-    ds = xr.Dataset(data, coords={"time": ("time", np.arange(n, dtype=float))})
+    time = ("time", np.arange(n, dtype=float), HISTORY["time"].attrs())
+    ds = xr.Dataset(data, coords={"time": time})
+    ds["time"].encoding["_FillValue"] = None  # a coordinate has no fill value (CF 2.5.1)
+    ds.attrs["Conventions"] = "CF-1.11"
+    ds.attrs["title"] = "DEM-schema history made from TIV model paths (bridge.series)"
     ds.attrs.update(attrs or {})
     ds.attrs["stress_scale_kpa"] = convention.stress_scale_kpa
     return ds

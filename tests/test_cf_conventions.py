@@ -44,13 +44,7 @@ import pytest
 CHECKER = "cf:1.11"
 
 #: Files whose writer is known not to follow CF yet (strict xfail: fixing it fails the mark).
-KNOWN_NOT_CF = {
-    "bridge_synthetic_relaxed_states": (
-        "bridge.pipeline.synthetic_inputs writes this DEM-schema history with xarray's "
-        "to_netcdf, not the DEM writer: no global Conventions (CF 2.6.1), and its coordinate "
-        "'time' has no units nor long_name (CF 3.1, 3.2) and a _FillValue (CF 2.5.1)"
-    ),
-}
+KNOWN_NOT_CF: dict[str, str] = {}
 
 KINDS = (
     "tiv_k0",
