@@ -306,7 +306,8 @@ def run_sweep(
     except KeyboardInterrupt:
         say(
             f"{stamp()} interrupted: the members still running are left unfinished; a re-run "
-            "runs them again from scratch"
+            "resumes them from their saved state A (or from the gas, where they had not reached "
+            "it)"
         )
         raise
     finally:
