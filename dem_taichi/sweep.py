@@ -346,7 +346,9 @@ def _run_command(args, prog: str) -> int:
 def _summarise_command(args) -> int:
     from dem_taichi.sweep_results import summarise_sweep
 
-    files = summarise_sweep(args.dir, over=tuple(args.over or ["scene.seed"]), out=args.out)
+    files = summarise_sweep(
+        args.dir, over=tuple(args.over or ["scene.seed"]), out=args.out, extra_runs=args.add
+    )
     if not args.quiet:
         print(Path(files["table"]).read_text())
     for kind, path in files.items():
@@ -388,6 +390,11 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         summary.add_argument(
             "--out", default=None, help="markdown file (default DIR/replica_summary.md)"
         )
+        summary.add_argument(
+            "--add", nargs="+", default=[], metavar="RUN_DIR",
+            help="finished protocol runs of the same scene made outside the sweep, pooled as "
+            "more replicas (default: none)",
+        )  # fmt: skip
         add_common_flags(summary, sub=True)
     return parser
 

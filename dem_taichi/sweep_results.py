@@ -91,7 +91,20 @@ def _finished_members(out: Path) -> tuple[dict, list[dict], list[str]]:
     return sweep, finished, [m["name"] for m in other]
 
 
-def open_sweep(out_dir: str | Path) -> xr.Dataset:
+def _extra_member(folder: Path, keys) -> dict:
+    """A finished protocol run outside the sweep as a member: its folder name, and the swept
+    keys it can state (``scene.seed`` from its history's attributes; the others None)."""
+    if not (folder / "summary.json").exists():
+        raise FileNotFoundError(f"{folder / 'summary.json'} does not exist: not a finished run")
+    seed = None
+    with xr.open_dataset(folder / "relaxed_states.nc") as relaxed:
+        if "seed" in relaxed.attrs:
+            seed = int(relaxed.attrs["seed"])
+    return {"name": folder.name, "parameters": {k: seed if k == "scene.seed" else None
+                                                for k in keys}}  # fmt: skip
+
+
+def open_sweep(out_dir: str | Path, extra_runs=()) -> xr.Dataset:
     """The finished members of the sweep in ``out_dir`` as one dataset along ``member``.
 
     Dimensions ``member`` (the finished members, in the sweep's order) and ``state`` (every
@@ -101,14 +114,22 @@ def open_sweep(out_dir: str | Path) -> xr.Dataset:
     along ``member``: the path findings of :data:`RUN_SCALARS`. Every key the sweep varies is a
     coordinate along ``member`` (``scene.seed`` → ``scene_seed``, attribute ``sweep_key``).
     Attributes: the sweep's name and scene, and the members not finished (failed, pending).
+    ``extra_runs``: folders of finished protocol runs of the same scene made outside the sweep
+    (earlier replicas), added after the sweep's members (attribute ``extra_runs``).
     """
     out = Path(out_dir)
     if not (out / "sweep.json").exists():
         raise FileNotFoundError(f"{out / 'sweep.json'} does not exist: not a sweep directory")
     sweep, members, not_finished = _finished_members(out)
+    swept = list(dict.fromkeys(k for m in sweep["members"] for k in m["parameters"]))
+    extras = [Path(f) for f in extra_runs]
+    folders = [out / "members" / m["name"] for m in members] + extras
+    members = members + [_extra_member(f, swept) for f in extras]
     names = [m["name"] for m in members]
-    per_state = [state_findings(out / "members" / n) for n in names]
-    per_run = [run_findings(out / "members" / n) for n in names]
+    if len(set(names)) != len(names):
+        raise ValueError(f"member names must be distinct (extra runs included): {names}")
+    per_state = [state_findings(f) for f in folders]
+    per_run = [run_findings(f) for f in folders]
     labels = sorted({label for s in per_state for label in s}, key=_state_key)
     history = {v.name: v for v in HISTORY_VARIABLES}
     probes = {v.name: v for v in PROBE_VARIABLES}
@@ -148,6 +169,7 @@ def open_sweep(out_dir: str | Path) -> xr.Dataset:
         "scene": sweep["scene"],
         "sweep_keys": ", ".join(keys),
         "members_not_finished": ", ".join(not_finished),
+        "extra_runs": ", ".join(str(f) for f in extras),
         "source": "dem_taichi.sweep_results.open_sweep",
     }
     return ds
@@ -274,6 +296,8 @@ def summary_table(ds: xr.Dataset, stats: dict) -> str:
     ]
     if ds.attrs.get("members_not_finished"):
         lines.append(f"Not finished (left out): {ds.attrs['members_not_finished']}.")
+    if ds.attrs.get("extra_runs"):
+        lines.append(f"Runs from outside the sweep, pooled as replicas: {ds.attrs['extra_runs']}.")
     for group, entry in stats.items():
         lines += [
             "",
@@ -367,13 +391,16 @@ def _finite(value):
 
 
 def summarise_sweep(
-    out_dir: str | Path, over: tuple[str, ...] = ("scene.seed",), out: str | Path | None = None
+    out_dir: str | Path,
+    over: tuple[str, ...] = ("scene.seed",),
+    out: str | Path | None = None,
+    extra_runs=(),
 ) -> dict[str, str]:
     """Write the replica table (markdown), figure (PNG), statistics (JSON) and the combined
     dataset (netCDF) of the sweep in ``out_dir``; returns their paths. ``out``: the table's
     path (default ``out_dir/replica_summary.md``; the other files take its stem)."""
     folder = Path(out_dir)
-    ds = open_sweep(folder)
+    ds = open_sweep(folder, extra_runs)
     if ds.sizes["member"] == 0:
         raise ValueError(f"sweep in {folder}: no finished member to summarise")
     stats = replica_statistics(ds, over)

@@ -239,6 +239,18 @@ name = "broken"
     assert ds["k0_at_C"].sel(member="seed-2") == pytest.approx(c["stress_xx"] / c["stress_yy"])
     assert np.all(np.isfinite(ds["e_ratio"].values)) and np.all(ds["e_oed_v"].values > 0)
 
+    # a run made outside the sweep (here a copy of a member) pools as one more replica
+    import shutil
+
+    earlier = tmp_path / "earlier_run"
+    shutil.copytree(out / "members" / "seed-2", earlier)
+    pooled = open_sweep(out, extra_runs=[earlier])
+    assert list(pooled["member"].values) == ["seed-1", "broken", "seed-2", "earlier_run"]
+    assert list(pooled["scene_seed"].values) == [1, 3, 2, 2]
+    assert pooled.attrs["extra_runs"] == str(earlier)
+    with pytest.raises(ValueError, match="distinct"):
+        open_sweep(out, extra_runs=[out / "members" / "seed-1"])
+
     relaxed = open_relaxed_states(out)
     assert relaxed.sizes["member"] == 3 and "A_to_C" in set(relaxed["stage_label"].values.ravel())
     on_c = relaxed["stage_label"].sel(member="seed-2").values == "A_to_C"
