@@ -150,6 +150,16 @@ def merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
     runner.log.merge(outcome.log)
 
 
+def _stop_workers(pool) -> None:
+    """Terminate a process pool's workers (their finished branches are saved already) and
+    drop its queued branches, so that an interrupted run stops at once instead of waiting
+    for the branches still running."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # no public handle
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+
+
 def run_branches_in_processes(
     runner, history, relaxed, branches, workers, arch, precision, progress, done=None
 ) -> None:
@@ -184,12 +194,16 @@ def run_branches_in_processes(
             if b not in done
         }  # fmt: skip
         errors = []
-        for branch in branches:
-            try:
-                outcome = done[branch] if branch in done else futures[branch].result()
-                merge_branch(runner, history, relaxed, outcome)
-            except Exception as exc:  # noqa: BLE001 - keep the other branches, raise below
-                errors.append((branch, exc))
+        try:
+            for branch in branches:
+                try:
+                    outcome = done[branch] if branch in done else futures[branch].result()
+                    merge_branch(runner, history, relaxed, outcome)
+                except Exception as exc:  # noqa: BLE001 - keep the other branches, raise below
+                    errors.append((branch, exc))
+        except KeyboardInterrupt:  # SIGINT/SIGTERM of the run: stop the branches now
+            _stop_workers(pool)
+            raise
     if errors:
         branch, exc = errors[0]
         raise ProtocolError(f"branch {branch!r} from A failed: {exc}") from exc

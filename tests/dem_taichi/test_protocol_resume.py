@@ -130,3 +130,75 @@ def test_sigint_on_the_command_line_then_resume(tmp_path):
     resumed = subprocess.run(args + ["--resume"], capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr
     assert (out / "summary.json").exists()
+
+
+def test_sigterm_with_worker_processes_stops_them(tmp_path):
+    """SIGTERM to a run whose branches are in worker processes: exit code 143 and the one line;
+    no worker process is left behind; the resume finishes the run."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(out), "--quiet"]
+    args += ["--set", "probing.dynamic=false", "--workers", "2"]
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 600
+    while not (out / "resume" / "A.pkl").exists() and proc.poll() is None:
+        assert time.monotonic() < deadline, "state A not reached in 10 min"
+        time.sleep(0.2)
+    time.sleep(3.0)  # the branch processes have started
+    children = _children(proc.pid)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    assert proc.returncode == 143, err
+    assert "SIGTERM: stopped; state A and" in err and "Traceback" not in err
+    left = [c for c in children if os.path.exists(f"/proc/{c}")]
+    for _ in range(50):  # up to 5 s for the terminated processes to be reaped
+        left = [c for c in left if _alive(c)]
+        if not left:
+            break
+        time.sleep(0.1)
+    assert not left, f"processes left: {[_cmdline(c) for c in left]}"
+    resumed = subprocess.run(args + ["--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    assert (out / "summary.json").exists()
+
+
+def _children(pid: int) -> list[int]:
+    """The process ids of ``pid``'s descendants (Linux /proc)."""
+    import os
+
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit():
+                continue
+            try:
+                with open(f"/proc/{entry}/stat") as fh:
+                    ppid = int(fh.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            if ppid == parent:
+                found.append(int(entry))
+                todo.append(int(entry))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        with open(f"/proc/{pid}/cmdline") as fh:
+            return fh.read().replace("\0", " ")[:120]
+    except OSError:
+        return "?"
