@@ -377,8 +377,19 @@ class Scene:
         """Copy with whole sections replaced or with ``section={"key": value}`` updates."""
         updates = {}
         for name, value in sections.items():
+            if name not in _CORE_SECTIONS:
+                raise SceneError(
+                    f"replace({name}=...): no such section; allowed: {', '.join(_CORE_SECTIONS)}"
+                )
             current = getattr(self, name)
             if isinstance(value, dict):
+                known = {f.name for f in dataclasses.fields(current)}
+                unknown = sorted(set(value) - known)
+                if unknown:
+                    raise SceneError(
+                        f"[{name}] unknown key(s) {', '.join(unknown)}; allowed keys: "
+                        f"{', '.join(sorted(known))}"
+                    )
                 value = dataclasses.replace(current, **value)
             updates[name] = value
         return dataclasses.replace(self, **updates, source_text="")
@@ -495,6 +506,11 @@ def load_scene(path_or_name: str | Path) -> Scene:
     refused (it would otherwise run the defaults without a word); ``scene_from_dict`` and
     ``scene_from_toml`` still fill every missing section with its defaults.
     """
+    if not isinstance(path_or_name, str | Path) or not str(path_or_name).strip():
+        raise SceneError(
+            f"scene = {path_or_name!r}: give a built-in scene name (smoke, demo, default, "
+            "paper), a scene TOML path or a loaded Scene"
+        )
     path = Path(path_or_name)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         path = builtin_scene_path(str(path_or_name))

@@ -150,6 +150,8 @@ def _protocol_steps(scene) -> float:
 
 def estimate_cost(scene, command: str = "protocol", precision: str = "f64") -> CostEstimate:
     """The estimate for ``command`` = ``"run"`` (the built-in schedule) or ``"protocol"``."""
+    if command not in ("run", "protocol"):
+        raise ValueError(f"command = {command!r}: allowed values are run | protocol")
     p = scene.particles
     discs = p.n_rods * p.n_spheres
     if command == "run":

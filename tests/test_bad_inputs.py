@@ -335,3 +335,68 @@ def test_the_real_command_lines(command, words, tmp_path):
     assert len(result.stderr.strip().splitlines()) == 1 and words in result.stderr
     debug = subprocess.run([*env_python, "--debug"], cwd=tmp_path, capture_output=True, text=True)
     assert debug.returncode != 0 and "Traceback" in debug.stderr
+
+
+# -- the Python APIs: each bad call raises at once, with a message naming what is wrong -------
+def _api_cases():
+    from bridge.pipeline import calibrate_from_results
+    from bridge.replicas import calibrate_replicas
+    from bridge.series import SeriesError
+    from dem_taichi import Simulation, load_scene, run_protocol
+    from dem_taichi.config import SceneError, scene_with_overrides
+    from dem_taichi.cost import estimate_cost
+    from dem_taichi.io.run_directory import RunDirectoryError
+    from dem_taichi.presets import with_preset
+    from dem_taichi.sweep_results import open_sweep
+    from dem_taichi.sweep_spec import SweepError, sweep_from_toml
+    from tiv_model import TABLE1, ModelOptions, drivers
+    from tiv_model.errors import ParameterError
+
+    def smoke():
+        return load_scene("smoke")
+
+    # fmt: off
+    return [
+        ("Simulation-unknown-scene", lambda t: Simulation("nope"), SceneError, "no built-in scene 'nope'"),  # noqa: E501
+        ("Simulation-not-a-scene", lambda t: Simulation(42), SceneError, "scene = 42: give a built-in scene name"),  # noqa: E501
+        ("Simulation-arch", lambda t: Simulation(smoke(), arch="tpu"), ValueError, "cpu | gpu"),
+        ("Simulation-precision", lambda t: Simulation(smoke(), precision="f16"), ValueError, "f64 | f32"),  # noqa: E501
+        ("Simulation-execution", lambda t: Simulation(smoke(), execution="fast"), ValueError, "auto|serial|parallel|gather"),  # noqa: E501
+        ("load_scene-empty", lambda t: load_scene(""), SceneError, "scene = '': give"),
+        ("run_protocol-workers", lambda t: run_protocol("smoke", t / "a", workers=0), ValueError, "workers = 0"),  # noqa: E501
+        ("run_protocol-pattern", lambda t: run_protocol("smoke", t / "b", pattern="sour"), ValueError, "acidic | basic | neutral"),  # noqa: E501
+        ("run_protocol-resume-nothing", lambda t: run_protocol("smoke", t / "c", resume=True), RunDirectoryError, "no run to continue"),  # noqa: E501
+        ("scene_with_overrides-no-value", lambda t: scene_with_overrides(smoke(), ["contact.mu"]), SceneError, "expected section.key=value"),  # noqa: E501
+        ("scene_with_overrides-unknown", lambda t: scene_with_overrides(smoke(), ["contact.mux=1"]), SceneError, "unknown key(s) mux"),  # noqa: E501
+        ("Scene.replace-unknown-key", lambda t: smoke().replace(particles={"n_rodz": 3}), SceneError, "unknown key(s) n_rodz"),  # noqa: E501
+        ("Scene.replace-unknown-section", lambda t: smoke().replace(partikles={}), SceneError, "no such section"),  # noqa: E501
+        ("with_preset-unknown", lambda t: with_preset(smoke(), "quick"), SceneError, "fast, balanced, accurate"),  # noqa: E501
+        ("estimate_cost-command", lambda t: estimate_cost(smoke(), "walk"), ValueError, "run | protocol"),  # noqa: E501
+        ("sweep_from_toml-scene", lambda t: sweep_from_toml("[sweep]\nscene = 5\n"), SweepError, "[sweep] scene = 5"),  # noqa: E501
+        ("open_sweep-not-a-sweep", lambda t: open_sweep(t), FileNotFoundError, "not a sweep directory"),  # noqa: E501
+        ("Parameters-negative", lambda t: TABLE1.replace(lambda_star=-1.0), ParameterError, "need 0 < lambda_star"),  # noqa: E501
+        ("drivers.k0-negative", lambda t: drivers.k0(sigma_v_max=-5.0), ParameterError, "sigma_v_max = -5.0"),  # noqa: E501
+        ("drivers.k0-increments", lambda t: drivers.k0(increments=0), ParameterError, "increments = 0"),  # noqa: E501
+        ("ModelOptions-anisotropy", lambda t: ModelOptions(anisotropy="C"), ParameterError, "use 'A' or 'B'"),  # noqa: E501
+        ("calibrate_from_results-missing", lambda t: calibrate_from_results(t / "h.nc", None, t / "o"), FileNotFoundError, "does not exist"),  # noqa: E501
+        ("calibrate_from_results-option", lambda t: calibrate_from_results(t / "h.nc", None, t / "o", {"nonsense": 1}), TypeError, "unknown pipeline option(s) ['nonsense']"),  # noqa: E501
+        ("calibrate_replicas-not-runs", lambda t: calibrate_replicas([t], t / "r"), SeriesError, "neither a protocol run"),  # noqa: E501
+    ]
+    # fmt: on
+
+
+API_CASES = _api_cases()
+
+
+@pytest.mark.parametrize(
+    ("call", "error", "words"), [c[1:] for c in API_CASES], ids=[c[0] for c in API_CASES]
+)
+def test_python_api_bad_input_raises_with_a_clear_message(call, error, words, tmp_path):
+    with pytest.raises(error) as raised:
+        call(tmp_path)
+    assert words in str(raised.value)
+    assert "\n" not in str(raised.value).strip()  # one line
+
+
+def test_all_entry_points_together_exceed_eighty_cases():
+    assert len(CASES) + len(API_CASES) >= 140
