@@ -29,7 +29,7 @@ import math
 import sys
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import xarray as xr
@@ -48,6 +48,7 @@ from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
 from .figures import write_figures
 from .identifiability import identifiability
 from .predict import predict_paths, predict_probes, summary
+from .replicas import calibrate_replicas
 from .report import report_markdown, write_report
 from .series import (
     HISTORY_REQUIRED,
@@ -272,6 +273,15 @@ def calibrate_from_results(
     (out / "calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
     files["calibration"] = str(out / "calibration.json")
     return outcome
+
+
+def calibrate_on_replicas(folders, out_dir, options=None, say=print) -> dict:
+    """Calibrate on replica runs (:mod:`bridge.replicas`): on their record-by-record mean with
+    ``options`` (as for :func:`calibrate_from_results`), then on each replica alone (without
+    figures and profile likelihoods); returns what ``out_dir/replicas.json`` holds."""
+    opts = pipeline_options(options)
+    quick = replace(opts, figures=False, identifiability=False)
+    return calibrate_replicas(folders, out_dir, calibrate_from_results, opts, quick, say)
 
 
 def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float = 0.0):
@@ -521,9 +531,7 @@ def _run(argv: list[str], prog: str = PROG) -> int:
         identifiability=not args.no_identifiability,
     )
     if args.replicas:
-        from .replicas import calibrate_replicas
-
-        calibrate_replicas(args.replicas, args.out, options, say=_quiet_say(args.quiet))
+        calibrate_on_replicas(args.replicas, args.out, options, say=_quiet_say(args.quiet))
         if not args.quiet:
             print((Path(args.out) / "replicas.md").read_text())
         return 0

@@ -23,12 +23,12 @@ Outputs in ``out_dir``: ``mean/`` (the mean files ``relaxed_states.nc`` and ``pr
 their calibration, report and figures), ``replica_<name>/`` (each replica's calibration),
 ``replicas.json`` and ``replicas.md`` (the parameter table). Command line:
 ``python -m bridge calibrate --replicas RUN_DIR [RUN_DIR ...] --out DIR`` (or a sweep folder,
-whose finished ``members/*`` are the replicas), with every option of ``calibrate``.
+whose finished ``members/*`` are the replicas), with every option of ``calibrate``; in Python
+:func:`bridge.pipeline.calibrate_on_replicas`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from pathlib import Path
@@ -199,16 +199,17 @@ def _markdown(spread: dict, runs: list[Path], mean_dir: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def calibrate_replicas(folders, out_dir, options=None, say=print) -> dict:
+def calibrate_replicas(folders, out_dir, calibrate, options, replica_options, say=print) -> dict:
     """Calibrate on the mean of the replicas and on each replica (see the module docstring).
 
-    ``options``: as for :func:`bridge.pipeline.calibrate_from_results` (the replicas'
-    calibrations skip the figures and the profile likelihoods). Returns the dict written to
-    ``replicas.json``: ``runs``, ``mean`` (the mean calibration's outcome), ``replicas``
-    (each one's parameters and standard errors) and ``parameters`` (:func:`parameter_spread`).
+    ``calibrate(history, probes, out_dir, options)`` is the calibration of one data set
+    (:func:`bridge.pipeline.calibrate_from_results`, passed in by
+    :func:`bridge.pipeline.calibrate_on_replicas`, which is the entry to use); ``options`` are
+    the mean's, ``replica_options`` the replicas' (without figures and profile likelihoods).
+    Returns the dict written to ``replicas.json``: ``runs``, ``mean`` (the mean calibration's
+    outcome), ``replicas`` (each one's parameters and standard errors) and ``parameters``
+    (:func:`parameter_spread`).
     """
-    from .pipeline import calibrate_from_results, pipeline_options
-
     runs = replica_runs(folders)
     out = Path(out_dir)
     mean_dir = out / "mean"
@@ -219,18 +220,16 @@ def calibrate_replicas(folders, out_dir, options=None, say=print) -> dict:
     if probes is not None:
         probes.to_netcdf(mean_dir / PROBES)
         probes_path = mean_dir / PROBES
-    opts = pipeline_options(options)
     say(f"calibrating on the mean of {len(runs)} replicas ...")
-    mean_fit = calibrate_from_results(mean_dir / RELAXED, probes_path, mean_dir, opts)
-    quick = dataclasses.replace(opts, figures=False, identifiability=False)
+    mean_fit = calibrate(mean_dir / RELAXED, probes_path, mean_dir, options)
     replica_fits = {}
     for run in runs:
         say(f"calibrating replica {run.name} ...")
-        fit = calibrate_from_results(
+        fit = calibrate(
             run / RELAXED,
             run / PROBES if probes_path and (run / PROBES).exists() else None,
             out / f"replica_{run.name}",
-            quick,
+            replica_options,
         )
         replica_fits[run.name] = {k: fit[k] for k in ("parameters", "standard_errors", "fitted")}
     spread = parameter_spread(mean_fit, replica_fits)

@@ -39,7 +39,6 @@ has something to do (``[control] target_specific_volume`` below the gas's 1/init
 from __future__ import annotations
 
 import argparse
-import math
 import signal
 import sys
 from pathlib import Path
@@ -51,7 +50,8 @@ from dem_taichi.config import (
     scene_to_toml,
 )
 from dem_taichi.cost import check_cost, cost_lines
-from dem_taichi.presets import add_preset_option, scene_from_options
+from dem_taichi.run_schedule import builtin_schedule
+from dem_taichi.scene_options import add_preset_option, scene_from_options
 from tiv_model.command_line import (
     ArgumentParser,
     UsageError,
@@ -64,22 +64,6 @@ from tiv_model.command_line import (
 __all__ = ["main", "builtin_schedule"]
 
 PROG = "python -m dem_taichi"
-
-
-def builtin_schedule(scene: Scene) -> list[tuple[str, int, float]]:
-    """Stages of the built-in run: (stage label, steps, strain rate of both axes).
-
-    The compression lasts t = ln(v_0 / v_target) / (2 ε̇) (area A ∝ exp(−2 ε̇ t)).
-    """
-    v0 = 1.0 / scene.particles.initial_area_fraction
-    target = scene.control.target_specific_volume
-    rate = scene.control.compression_strain_rate
-    stages = []
-    if target < v0:
-        duration = math.log(v0 / target) / (2.0 * rate)
-        stages.append(("isotropic_to_A", int(math.ceil(duration / scene.time_step)), rate))
-    stages.append(("relax", scene.control.relax_steps, 0.0))
-    return stages
 
 
 class _StopSignals:

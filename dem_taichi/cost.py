@@ -4,15 +4,15 @@
   arrays (:data:`dem_taichi.device_arrays.DEVICE_ARRAYS`) of their shapes for this scene, the
   neighbour capacity taken at 1.5× its start value (it grows as the sample is compressed), and
   the cell grid of the starting gas (its largest box).
-- **Steps**: the built-in run's schedule exactly (:func:`dem_taichi.cli.builtin_schedule`); for
-  the protocol a rough estimate scaled from the measured default-scene protocol (serial,
-  seed 2: gas → A 0.30 M steps, A→B 1.16 M, A→C 1.80 M, C→B 0.07 M, each radial path 1.63 M,
-  at dt_safety 0.15, inertial-number cap 1e-3, elastic servo; ``benchmarks/sweeps/
-  default_seeds.toml``): each path's steps × (Δt_ref / Δt) × (I_ref / I) (the loading is
-  rate-capped) × ln(p_end / p_A) / ln(100 / 0.6) (p_A ≈ 1.2 × ``pressure_tolerance``)
-  × sqrt(path_increments / 6) × 0.5 for the secant servo (measured:
-  ``servo_trade_default_acidic.md``), plus 2e5 steps per dynamic probe sweep. Good to a
-  factor ~3 (chaotic packings, the servo).
+- **Steps**: the built-in run's schedule exactly
+  (:func:`dem_taichi.run_schedule.builtin_schedule`); for the protocol a rough estimate scaled
+  from the measured default-scene protocol (serial, seed 2: gas → A 0.30 M steps, A→B 1.16 M,
+  A→C 1.80 M, C→B 0.07 M, each radial path 1.63 M, at dt_safety 0.15, inertial-number cap 1e-3,
+  elastic servo; ``benchmarks/sweeps/default_seeds.toml``): each path's steps × (Δt_ref / Δt) ×
+  (I_ref / I) (the loading is rate-capped) × ln(p_end / p_A) / ln(100 / 0.6) (p_A ≈ 1.2 ×
+  ``pressure_tolerance``) × sqrt(path_increments / 6) × 0.5 for the secant servo (measured:
+  ``servo_trade_default_acidic.md``), plus 2e5 steps per dynamic probe sweep. Good to a factor
+  ~3 (chaotic packings, the servo).
 - **CPU time**: steps × (a + b · discs), a = 1.2e-4 s per step and b = 3.3e-8 s per
   disc-step, fitted to two measured serial protocol runs with long-range forces on the
   development machine (default: 1.68e-4 s per step at 1500 discs; paper: 3.7e-4 s at 7600,
@@ -155,7 +155,7 @@ def estimate_cost(scene, command: str = "protocol", precision: str = "f64") -> C
     p = scene.particles
     discs = p.n_rods * p.n_spheres
     if command == "run":
-        from dem_taichi.cli import builtin_schedule
+        from dem_taichi.run_schedule import builtin_schedule
 
         steps, exact = float(sum(n for _, n, _ in builtin_schedule(scene))), True
     else:

@@ -8,8 +8,8 @@ loading rate, the servo's stiffness and the relaxation tolerances. Selecting one
 - on the command line, ``--preset NAME`` (``run``, ``protocol``): the preset's keys replace the
   scene's (a built-in scene states them all), and ``--set section.key=value`` still wins over
   both;
-- in Python, :func:`with_preset` (the command line's rule) or a scene dict with
-  ``scene.preset`` (the file's rule).
+- in Python, :func:`dem_taichi.scene_options.with_preset` (the command line's rule) or a
+  scene dict with ``scene.preset`` (the file's rule).
 
 The measured cost and error of each preset (wall time and the error of each finding against a
 converged reference run of the same sample, isotropic and K0 paths of the ``default`` scene)
@@ -40,9 +40,6 @@ __all__ = [
     "PRESET_NAMES",
     "preset_keys",
     "fill_preset",
-    "with_preset",
-    "scene_from_options",
-    "add_preset_option",
 ]
 
 PRESETS: MappingProxyType = MappingProxyType(
@@ -113,44 +110,6 @@ def fill_preset(data: dict) -> dict:
         if isinstance(table, dict):
             table.setdefault(field_name, value)
     return out
-
-
-def with_preset(scene, name: str):
-    """``scene`` with the preset ``name``'s keys replacing its own (the command line's rule),
-    and ``[scene] preset`` set to ``name``. ``name = ""`` returns the scene unchanged."""
-    if not name:
-        return scene
-    from dem_taichi.config import scene_with_overrides
-
-    items = [f"{key}={_toml(value)}" for key, value in preset_keys(name).items()]
-    return scene_with_overrides(scene, [*items, f'scene.preset="{name}"'])
-
-
-def _toml(value: Any) -> str:
-    return f'"{value}"' if isinstance(value, str) else repr(value)
-
-
-def scene_from_options(scene, preset: str = "", overrides=()):
-    """The scene of a command line: ``scene`` (a Scene, TOML path or built-in name), then the
-    ``--preset`` (its keys replace the scene's), then the ``--set`` overrides (they win)."""
-    from dem_taichi.config import Scene, load_scene, scene_with_overrides
-
-    loaded = scene if isinstance(scene, Scene) else load_scene(scene)
-    if preset:
-        loaded = with_preset(loaded, preset)
-    return scene_with_overrides(loaded, list(overrides))
-
-
-def add_preset_option(parser) -> None:
-    """The ``--preset`` option of a command line that takes a scene."""
-    parser.add_argument(
-        "--preset",
-        choices=tuple(PRESETS),
-        default="",
-        help="speed–accuracy preset: its keys (dt_safety, loading rate, servo, tolerances) "
-        "replace the scene's; --set still wins (default: the scene's own keys; "
-        "benchmarks/results/speed_accuracy.md gives each one's cost and error)",
-    )
 
 
 def set_keys(data: dict, overrides: dict[str, Any], where: str = "--set") -> dict:

@@ -61,7 +61,6 @@ from dem_taichi.branches import (
 )
 from dem_taichi.config import Scene, load_scene, scene_to_toml
 from dem_taichi.paths import ProtocolRunner
-from dem_taichi.presets import add_preset_option, scene_from_options
 from dem_taichi.protocol_config import probing_settings, protocol_settings
 from dem_taichi.protocol_records import (
     ProtocolError,
@@ -80,6 +79,7 @@ from dem_taichi.protocol_resume import (
     saved_summary,
 )
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
+from dem_taichi.scene_options import add_preset_option, scene_from_options
 from dem_taichi.servo import SecantStiffness
 
 # the names of the protocol before it was split into rooms (issue 9) stay importable from here

@@ -339,14 +339,13 @@ def test_the_real_command_lines(command, words, tmp_path):
 
 # -- the Python APIs: each bad call raises at once, with a message naming what is wrong -------
 def _api_cases():
-    from bridge.pipeline import calibrate_from_results
-    from bridge.replicas import calibrate_replicas
+    from bridge.pipeline import calibrate_from_results, calibrate_on_replicas
     from bridge.series import SeriesError
     from dem_taichi import Simulation, load_scene, run_protocol
     from dem_taichi.config import SceneError, scene_with_overrides
     from dem_taichi.cost import estimate_cost
     from dem_taichi.io.run_directory import RunDirectoryError
-    from dem_taichi.presets import with_preset
+    from dem_taichi.scene_options import with_preset
     from dem_taichi.sweep_results import open_sweep
     from dem_taichi.sweep_spec import SweepError, sweep_from_toml
     from tiv_model import TABLE1, ModelOptions, drivers
@@ -380,7 +379,7 @@ def _api_cases():
         ("ModelOptions-anisotropy", lambda t: ModelOptions(anisotropy="C"), ParameterError, "use 'A' or 'B'"),  # noqa: E501
         ("calibrate_from_results-missing", lambda t: calibrate_from_results(t / "h.nc", None, t / "o"), FileNotFoundError, "does not exist"),  # noqa: E501
         ("calibrate_from_results-option", lambda t: calibrate_from_results(t / "h.nc", None, t / "o", {"nonsense": 1}), TypeError, "unknown pipeline option(s) ['nonsense']"),  # noqa: E501
-        ("calibrate_replicas-not-runs", lambda t: calibrate_replicas([t], t / "r"), SeriesError, "neither a protocol run"),  # noqa: E501
+        ("calibrate_on_replicas-not-runs", lambda t: calibrate_on_replicas([t], t / "r"), SeriesError, "neither a protocol run"),  # noqa: E501
     ]
     # fmt: on
 

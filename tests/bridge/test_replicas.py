@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from bridge.pipeline import main, synthetic_inputs
-from bridge.replicas import calibrate_replicas, parameter_spread, replica_mean, replica_runs
+from bridge.pipeline import calibrate_on_replicas, main, synthetic_inputs
+from bridge.replicas import parameter_spread, replica_mean, replica_runs
 from bridge.series import SeriesError
 
 
@@ -38,9 +38,10 @@ def test_mean_files_are_the_record_by_record_means(replicas):
         np.testing.assert_allclose(history[name].values, stacked.mean(axis=0), rtol=1e-12)
     np.testing.assert_array_equal(history["stage"].values, runs[0]["stage"].values[-n:])
     assert history.attrs["replicas"] == 3
-    assert probes is not None and probes.sizes["probe"] == xr.load_dataset(
-        replicas[0] / "probes.nc"
-    ).sizes["probe"]
+    assert (
+        probes is not None
+        and probes.sizes["probe"] == xr.load_dataset(replicas[0] / "probes.nc").sizes["probe"]
+    )
 
 
 def test_replicas_of_other_protocols_are_refused(tmp_path, replicas):
@@ -65,7 +66,7 @@ def test_parameter_spread_combines_fit_error_and_replica_spread():
 
 def test_calibrate_replicas_end_to_end(tmp_path, replicas):
     options = {"figures": False, "identifiability": False}
-    result = calibrate_replicas(replicas, tmp_path / "out", options, say=lambda *_: None)
+    result = calibrate_on_replicas(replicas, tmp_path / "out", options, say=lambda *_: None)
     truth = replica(tmp_path / "t", seed=0)[1].as_symbols()
     assert set(result["replicas"]) == {"seed-1", "seed-2", "seed-3"}
     for symbol in ("k", "g", "lambda_star", "N"):

@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from dem_taichi.cli import builtin_schedule
 from dem_taichi.config import load_scene
 from dem_taichi.cost import LONG_RUN_SECONDS, check_cost, estimate_cost
-from dem_taichi.presets import with_preset
+from dem_taichi.run_schedule import builtin_schedule
+from dem_taichi.scene_options import with_preset
 
 
 def test_memory_estimate_brackets_the_engine_allocation():

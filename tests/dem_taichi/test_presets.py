@@ -15,8 +15,9 @@ from dem_taichi.config import (
     scene_to_toml,
     scene_with_overrides,
 )
-from dem_taichi.presets import PRESETS, preset_keys, scene_from_options, with_preset
+from dem_taichi.presets import PRESETS, preset_keys
 from dem_taichi.protocol_config import probing_settings, protocol_settings
+from dem_taichi.scene_options import scene_from_options, with_preset
 from dem_taichi.sweep_spec import sweep_from_toml
 
 BUILTIN = ("smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded")
@@ -62,9 +63,9 @@ def test_file_rule_keys_written_in_the_file_win():
         {"scene": {"preset": "accurate"}, "integration": {"dt_safety": 0.1}, "particles": {}}
     )
     assert scene.integration.dt_safety == 0.1
-    assert scene.control.inertial_number_max == preset_keys("accurate")[
-        "control.inertial_number_max"
-    ]
+    assert (
+        scene.control.inertial_number_max == preset_keys("accurate")["control.inertial_number_max"]
+    )
     assert protocol_settings(scene).servo_stiffness == "elastic"
 
 
