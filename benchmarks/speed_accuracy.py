@@ -269,6 +269,26 @@ def write_markdown(path, ref, head, table, replicas, probes, tiv, noise) -> None
         f"Balanced values: {', '.join(f'{k} {v}' for k, v in BALANCED_VALUES.items())}.",
         "",
     ]
+    presets = {row[2]: row for row in table if row[0] == "preset"}
+    if "balanced" in presets:
+        lines += ["## Presets", "", "| preset | wall s | × balanced's time | steps | largest "
+                  "relative error (finding) | error of E_h/E_v at C | error of v at C |",
+                  "|---|---|---|---|---|---|---|"]  # fmt: skip
+        base = presets["balanced"][3]
+        keys = [k for k, _, _ in FINDINGS]
+        for name in ("fast", "balanced", "accurate"):
+            if name not in presets:
+                continue
+            row = presets[name]
+            rel = [(e, label) for e, (_, label, kind) in zip(row[5:], FINDINGS, strict=True)
+                   if kind == "rel" and np.isfinite(e)]  # fmt: skip
+            worst = max(rel) if rel else (math.nan, "")
+            ratio_c, v_c = row[5 + keys.index("ratio_C")], row[5 + keys.index("v_C")]
+            lines.append(
+                f"| {name} | {row[3]:.0f} | {row[3] / base:.2f} | {row[4]:,} | "
+                f"{100 * worst[0]:.2g} % ({worst[1]}) | {100 * ratio_c:.2g} % | {100 * v_c:.2g} % |"
+            )
+        lines += ["", "`accurate` is the reference: its errors are zero by construction.", ""]
     if noise:
         lines.append(
             "Sampling-noise yardsticks: the skin members (no physics changed) differ from the "
