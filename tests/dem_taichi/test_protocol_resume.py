@@ -141,7 +141,14 @@ def test_sigterm_with_worker_processes_stops_them(tmp_path):
 
     out = tmp_path / "run"
     args = [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(out), "--quiet"]
-    args += ["--set", "probing.dynamic=false", "--workers", "2"]
+    args += [
+        "--set",
+        "probing.dynamic=false",
+        "--set",
+        "protocol.path_increments=1",
+        "--workers",
+        "2",
+    ]
     proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 600
     while not (out / "resume" / "A.pkl").exists() and proc.poll() is None:
