@@ -249,9 +249,13 @@ def run_sweep(
     def stamp() -> str:
         return f"[{time.perf_counter() - start:7.1f} s]"
 
+    folders = {str(member_dir(out, m.name).resolve()) for m in to_run}
+
     def on_event(event) -> None:
         msg = event[1] if isinstance(event, tuple) else event
         if not isinstance(msg, dict):
+            return
+        if msg.get("folder", "") not in folders:  # another sweep on the same scheduler
             return
         if msg.get("kind") == "started":
             say(f"{stamp()} {msg['member']}: started ({msg.get('text', '')})")

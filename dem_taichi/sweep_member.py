@@ -82,9 +82,10 @@ class _ProgressStream(io.TextIOBase):
         self._fh.flush()
 
 
-def _publisher(name: str):
-    """A function sending ``{"member", "kind", "text"}`` events to the client (no-op outside
-    a Dask worker)."""
+def _publisher(name: str, folder: str = ""):
+    """A function sending ``{"member", "folder", "kind", "text"}`` events to the client (no-op
+    outside a Dask worker); ``folder`` (the member's run directory) tells apart members of the
+    same name in sweeps sharing one scheduler."""
     try:
         from distributed import get_worker
 
@@ -94,7 +95,7 @@ def _publisher(name: str):
 
     def publish(kind: str, text: str = "") -> None:
         with contextlib.suppress(Exception):  # progress must never fail a member
-            worker.log_event(TOPIC, {"member": name, "kind": kind, "text": text})
+            worker.log_event(TOPIC, {"member": name, "folder": folder, "kind": kind, "text": text})
 
     return publish
 
@@ -133,7 +134,7 @@ def run_member(
     from dem_taichi.config import scene_from_toml
     from dem_taichi.protocol import run_protocol
 
-    publish = _publisher(name)
+    publish = _publisher(name, str(Path(run_dir).resolve()))
     out = Path(run_dir)
     with _MEMBER_LOCK:
         old = read_json(out / MEMBER_RECORD)
