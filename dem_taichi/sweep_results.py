@@ -349,7 +349,7 @@ def summary_figure(ds: xr.Dataset, stats: dict, path: str | Path, over=("scene.s
             half = [found[f"{name} at {s}"]["half"] for s in labels]
             ax.errorbar(x + shift, mean, yerr=np.nan_to_num(half), fmt="o", capsize=3, ms=4,
                         label=group)  # fmt: skip
-        ax.set_xticks(np.arange(len(labels)), labels)
+        ax.set_xticks(np.arange(len(labels)), labels, rotation=45 if len(labels) > 5 else 0)
         ax.set_ylabel(ylabel)
         if key == "e_ratio":
             ax.axhline(1.0, color="k", lw=0.6)
