@@ -223,6 +223,11 @@ def _g(x: float, digits: int = 3) -> str:
     return "" if x is None or not np.isfinite(x) else f"{x:.{digits}g}"
 
 
+def _percent(e: float) -> str:
+    """A relative error in per cent; below 1e-8 (the same state to round-off) as 0."""
+    return "0 %" if abs(e) < 1e-8 else f"{100 * e:.2g} %"
+
+
 def knob_table(rows: list[dict], ref: dict) -> tuple[list[str], list[list]]:
     head = ["knob", "value", "member", "wall s", "steps"] + [label for _, label, _ in FINDINGS]
     table = []
@@ -259,7 +264,7 @@ def write_markdown(path, ref, head, table, replicas, probes, tiv, noise) -> None
             row[:3]
             + [f"{row[3]:.0f}", f"{row[4]:,}"]
             + [
-                f"{100 * e:.2g} %" if kind == "rel" else _g(e, 2)
+                _percent(e) if kind == "rel" else _g(e, 2)
                 for e, (_, _, kind) in zip(row[5:], FINDINGS, strict=True)
             ]
         )
