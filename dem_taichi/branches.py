@@ -120,7 +120,7 @@ def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, resume_dir
     """Run one branch on the serial ``runner`` as :func:`run_branch_on` does (its records reach
     the run's writers as they come), with a log of its own merged into the run's at the end,
     and save its outcome as the ``index``-th branch in ``resume_dir``."""
-    main_log, history, relaxed = runner.log, runner.history, runner.relaxed_writer
+    main_log, history = runner.log, runner.history
     recorder = runner.probe_hook
     log = RunLog()
     log.states["A"] = main_log.states["A"]
@@ -134,7 +134,6 @@ def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, resume_dir
         runner.log, runner.history = main_log, history
         if recorder is not None:
             recorder.log = main_log
-        runner.relaxed_writer = relaxed
     del log.states["A"]
     main_log.merge(log)
     records = recording.records if recording is not None else []

@@ -383,13 +383,7 @@ class Scene:
                 )
             current = getattr(self, name)
             if isinstance(value, dict):
-                known = {f.name for f in dataclasses.fields(current)}
-                unknown = sorted(set(value) - known)
-                if unknown:
-                    raise SceneError(
-                        f"[{name}] unknown key(s) {', '.join(unknown)}; allowed keys: "
-                        f"{', '.join(sorted(known))}"
-                    )
+                _check_keys(type(current), name, value)
                 value = dataclasses.replace(current, **value)
             updates[name] = value
         return dataclasses.replace(self, **updates, source_text="")
@@ -409,10 +403,8 @@ BONDED_DT_SAFETY_LIMIT = 0.4
 _RETIRED_KEYS: dict[str, tuple[str, ...]] = {"control": ("servo_gain",)}
 
 
-def _load_section(cls: type, name: str, table: Any) -> Any:
-    if not isinstance(table, dict):
-        raise SceneError(f"[{name}] must be a table")
-    table = {k: v for k, v in table.items() if k not in _RETIRED_KEYS.get(name, ())}
+def _check_keys(cls: type, name: str, table: dict) -> None:
+    """Refuse keys of ``table`` that section ``[name]`` (dataclass ``cls``) does not have."""
     known = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - known)
     if unknown:
@@ -420,6 +412,13 @@ def _load_section(cls: type, name: str, table: Any) -> Any:
             f"[{name}] unknown key(s) {', '.join(unknown)}; "
             f"allowed keys: {', '.join(sorted(known))}"
         )
+
+
+def _load_section(cls: type, name: str, table: Any) -> Any:
+    if not isinstance(table, dict):
+        raise SceneError(f"[{name}] must be a table")
+    table = {k: v for k, v in table.items() if k not in _RETIRED_KEYS.get(name, ())}
+    _check_keys(cls, name, table)
     try:
         return cls(**table)
     except TypeError as exc:  # pragma: no cover - defensive
