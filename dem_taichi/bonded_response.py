@@ -36,6 +36,7 @@ from dem_taichi.linear_response import (
     linear_response,
     pair_jacobians,
     relaxed_response,
+    rolling_terms,
 )
 
 __all__ = ["bond_state", "bonded_response", "fragments", "network_response"]
@@ -110,10 +111,11 @@ def bonded_response(
     flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
     zero = np.zeros((snapshot.n_pairs, 2))
+    kappa, slope = rolling_terms(snapshot, pairs, sliding_contacts == "free", variant)
     k_pair, j_pair = pair_jacobians(
         pairs, zero, zero, pairs.separation, variant.normal_stiffness(snapshot, pairs),
         variant.k_t(snapshot), snapshot.mu, snapshot.k_n, sliding_free, include_geometric,
-        variant.rolling_stiffness,
+        kappa, slope,
     )  # fmt: skip
 
     # fragments (rods, or their pieces) are pruned as rigid rods are

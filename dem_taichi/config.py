@@ -14,7 +14,9 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
 ``[bonds]``         bonded rods only (model.md §1.7): normal, shear, bending (k_bn/k_n,
                     k_bt/k_n, κ_b/(k_n d²)), damping_ratio, breakage_force
 ``[contact]``       k_n, e_n *or* gamma_n, restitution_model (discrete|continuous), k_t, gamma_t,
-                    mu, friction (on/off)
+                    mu, friction (on/off); optional rolling resistance at inter-rod contacts:
+                    rolling_stiffness k_r (0: off), rolling_friction μ_r, rolling_damping γ_r
+                    (:mod:`dem_taichi.rolling`)
 ``[long_range]``    enabled, pattern (acidic|basic|neutral), f_max_edge, f_max_inner, k_a_edge,
                     k_a_inner
 ``[van_der_waals]`` enabled, f_max, k
@@ -158,10 +160,38 @@ class Contact(SceneSection):
     gamma_t: float = field(default=0.0, metadata=_range(0.0))
     mu: float = field(default=0.5, metadata=_range(0.0))
     friction: bool = True
+    rolling_stiffness: float = field(
+        default=0.0,
+        metadata=_range(
+            0.0,
+            None,
+            doc="k_r [force/length] of the rolling spring at inter-rod contacts, moment "
+            "stiffness k_r (d/2)² (MercuryDPM's; dem_taichi.rolling); 0: no rolling resistance",
+        ),
+    )
+    rolling_friction: float = field(
+        default=0.0,
+        metadata=_range(0.0, None, doc="μ_r: rolling moment cap μ_r (d/2) |f_c|; > 0 with k_r"),
+    )
+    rolling_damping: float = field(
+        default=0.0,
+        metadata=_range(0.0, None, doc="γ_r [force·time/length]: moment damping γ_r (d/2)² ω_rel"),
+    )
 
     def check(self) -> None:
         if self.e_n is not None and self.gamma_n is not None:
             raise SceneError("[contact] give either e_n or gamma_n, not both")
+        if self.rolling_stiffness > 0.0 and self.rolling_friction <= 0.0:
+            raise SceneError(
+                f"[contact] rolling_stiffness = {self.rolling_stiffness} needs rolling_friction "
+                "> 0 (the moment cap μ_r (d/2) |f_c|; a large value, e.g. 1e6, never slips)"
+            )
+        if self.rolling_stiffness == 0.0 and (self.rolling_friction or self.rolling_damping):
+            raise SceneError(
+                "[contact] rolling_friction / rolling_damping are used only with "
+                "rolling_stiffness > 0 (rolling resistance off): set rolling_stiffness or "
+                "remove them"
+            )
 
 
 @dataclass(frozen=True)
@@ -368,10 +398,38 @@ class Scene:
         return math.pi / omega
 
     @property
+    def rolling_parameters(self):
+        """The contacts' rolling spring as moments (:class:`dem_taichi.rolling.RollingParameters`;
+        ``enabled`` False without rolling resistance)."""
+        from dem_taichi.rolling import RollingParameters
+
+        c = self.contact
+        return RollingParameters.from_scene_keys(
+            c.rolling_stiffness, c.rolling_friction, c.rolling_damping, self.particles.diameter
+        )
+
+    @property
+    def rolling_period(self) -> float:
+        """π/ω of the rolling spring between two free bodies (rods, or discs of bonded rods;
+        inf without rolling resistance)."""
+        from dem_taichi.rolling import rolling_period
+
+        p = self.particles
+        inertia = p.disc_mass * p.diameter**2 / 8.0
+        if not self.bonded:
+            n = p.n_spheres
+            offsets2 = sum(((s - 0.5 * (n - 1)) * p.spacing) ** 2 for s in range(n))
+            inertia = n * inertia + p.disc_mass * offsets2
+        return rolling_period(self.rolling_parameters.stiffness, inertia)
+
+    @property
     def time_step(self) -> float:
-        """Δt = dt_safety × min(t_c, bond period) (continuous-model t_c: the same for both
-        restitution models; the bond period only for bonded rods)."""
-        return self.integration.dt_safety * min(self.contact_duration, self.bond_period)
+        """Δt = dt_safety × min(t_c, bond period, rolling period) (continuous-model t_c: the
+        same for both restitution models; the bond period only for bonded rods, the rolling
+        period only with rolling resistance)."""
+        return self.integration.dt_safety * min(
+            self.contact_duration, self.bond_period, self.rolling_period
+        )
 
     def replace(self, **sections: Any) -> Scene:
         """Copy with whole sections replaced or with ``section={"key": value}`` updates."""
@@ -571,12 +629,23 @@ def _toml_value(value: Any) -> str:
     raise TypeError(f"cannot write {value!r} to TOML")
 
 
+#: Keys written only when set (not 0 / empty): options added after run directories and sweeps
+#: began to hash the scene's TOML, so that a scene without them keeps its text and hash.
+_WRITTEN_WHEN_SET = {
+    ("scene", "preset"),
+    ("contact", "rolling_stiffness"),
+    ("contact", "rolling_friction"),
+    ("contact", "rolling_damping"),
+}
+
+
 def scene_to_toml(scene: Scene) -> str:
     """Write the full scene (every key, defaults included) as TOML; round-trips exactly.
 
-    ``[scene] preset`` is written only when set: its keys are all written anyway, and a scene
-    without one keeps the TOML (and the hash in run directories and sweeps) it had before
-    presets existed."""
+    ``[scene] preset`` and the rolling-resistance keys of ``[contact]`` are written only when
+    set (:data:`_WRITTEN_WHEN_SET`; a preset's keys are all written anyway): a scene without
+    them keeps the TOML (and the hash in run directories and sweeps) it had before they
+    existed."""
     lines = []
     sections = {name: getattr(scene, name) for name in _CORE_SECTIONS}
     if not scene.bonded:
@@ -586,7 +655,7 @@ def scene_to_toml(scene: Scene) -> str:
         lines.append(f"[{name}]")
         for f in dataclasses.fields(section):
             value = getattr(section, f.name)
-            if value is None or (name == "scene" and f.name == "preset" and not value):
+            if value is None or ((name, f.name) in _WRITTEN_WHEN_SET and not value):
                 continue
             lines.append(f"{f.name} = {_toml_value(value)}")
         lines.append("")

@@ -100,6 +100,7 @@ def _memory_bytes(scene, precision: str) -> float:
         "species": p.n_spheres,
         "capacity": capacity,
         "cells": cells,
+        "rolling_discs": discs if scene.rolling_parameters.enabled else 1,
     }
     real = 8 if precision == "f64" else 4
     total = 0.0

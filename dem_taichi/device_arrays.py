@@ -11,7 +11,9 @@ arrays cannot be swapped by position.
 Shape symbols: ``rods`` the bodies (N rigid rods, or the N n_s discs of bonded rods), ``discs``
 M = N n_s, ``spheres`` the discs per body (n_s, or 1 for bonded rods), ``species`` n_s (the
 places in a rod, for the charge pattern), ``capacity`` K (neighbour-list entries per disc, grown
-on overflow), ``cells`` the side of the cell-list grid; integers are fixed sizes (the small
+on overflow), ``rolling_discs`` M with rolling resistance at the contacts, else 1 (the rolling
+springs ψ, one per list entry, cost no memory where the scene has none), ``cells`` the side of
+the cell-list grid; integers are fixed sizes (the small
 arrays of :mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of
 body b to b + 1 holds) is allocated for rigid rods too, never read there.
 
@@ -83,9 +85,18 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray(
         "nbr_xi", _R, ("discs", "capacity"), "state", "tangential_spring", copy_on_growth=True
     ),
+    DeviceArray(
+        "nbr_psi",
+        _R,
+        ("rolling_discs", "capacity"),
+        "state",
+        "rolling_spring",
+        copy_on_growth=True,
+    ),  # fmt: skip
     DeviceArray("nbr_count", _I, ("discs",), "state", "neighbour_count"),
     DeviceArray("old_nbr", _I, ("discs", "capacity"), "work", copy_on_growth=True),
     DeviceArray("old_xi", _R, ("discs", "capacity"), "work", copy_on_growth=True),
+    DeviceArray("old_psi", _R, ("rolling_discs", "capacity"), "work", copy_on_growth=True),
     DeviceArray("old_count", _I, ("discs",), "work"),
     DeviceArray("cell_count", _I, ("cells", "cells"), "work"),
     DeviceArray("cell_start", _I, ("cells", "cells"), "work"),

@@ -90,7 +90,8 @@ class Physics:
     """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing).
 
     ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
-    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body).
+    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
+    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.rolling`).
     """
 
     friction: bool
@@ -98,6 +99,7 @@ class Physics:
     vdw: bool
     bonded: bool = False
     chain: int = 1
+    rolling: bool = False
 
 
 class Simulation(SimulationViews, SimulationState):
@@ -143,7 +145,7 @@ class Simulation(SimulationViews, SimulationState):
         friction_on = scene.contact.friction and scene.contact.k_t > 0
         self.physics = Physics(
             friction=friction_on, long_range=lr_on, vdw=vdw_on, bonded=self.bonded,
-            chain=self.geometry.n_spheres,
+            chain=self.geometry.n_spheres, rolling=scene.rolling_parameters.enabled,
         )  # fmt: skip
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
@@ -197,6 +199,7 @@ class Simulation(SimulationViews, SimulationState):
         self.capacity = int(capacity)
         cells_axis = int(max(cell_lengths) / self.list_radius) + 2
         self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
+        self._sizes["rolling_discs"] = m if self.physics.rolling else 1
         self._sizes["species"] = self.geometry.n_spheres
         self._sizes["cells"] = cells_axis
         self._dtypes = {"real": real, "i32": ti.i32}
@@ -211,7 +214,9 @@ class Simulation(SimulationViews, SimulationState):
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
-        self.a["nbr_xi"].from_numpy(np.zeros((m, self.capacity), dtype=self._real))
+        for name in ("nbr_xi", "nbr_psi"):
+            shape = self.a[name].shape
+            self.a[name].from_numpy(np.zeros(shape, dtype=self._real))
         self.a["params"].from_numpy(self._default_params())
 
     def _default_params(self) -> np.ndarray:
@@ -241,6 +246,8 @@ class Simulation(SimulationViews, SimulationState):
             p[[L.P_BOND_KN, L.P_BOND_KT, L.P_BOND_KB]] = b.k_n, b.k_t, b.k_b
             p[[L.P_BOND_GN, L.P_BOND_GT, L.P_BOND_GB]] = b.gamma_n, b.gamma_t, b.gamma_b
             p[L.P_BOND_BREAK] = b.breakage_force
+        roll = s.rolling_parameters
+        p[[L.P_ROLL_K, L.P_ROLL_G, L.P_ROLL_CAP]] = roll.stiffness, roll.damping, roll.cap
         return p.astype(self._real)
 
     def _upload_gas(self, gas: GasState) -> None:
@@ -374,7 +381,7 @@ class Simulation(SimulationViews, SimulationState):
                 self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
                 for _ in range(todo):
-                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list)
+                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list, phys=self.physics)
                     self._launch(K.kick_drift_parallel, ns=ns)
                     if self.full_list:
                         self._launch(K.forces_gather, ns=ns, phys=self.physics)

@@ -19,7 +19,7 @@ from dem_taichi.config import scene_from_toml, scene_to_toml
 from dem_taichi.device_arrays import STATE_ARRAYS
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene import GasState
-from dem_taichi.state import convert_neighbour_list, upgrade_state
+from dem_taichi.state import convert_neighbour_list, fit_rolling_spring, upgrade_state
 
 __all__ = ["SimulationState"]
 
@@ -61,6 +61,7 @@ class SimulationState:
             )
         state = upgrade_state(state, n)
         state = convert_neighbour_list(state, self.full_list, self.capacity)
+        state = fit_rolling_spring(state, self.physics.rolling)
         capacity = state["neighbours"].shape[1]
         if capacity != self.capacity:
             self._grow(capacity)

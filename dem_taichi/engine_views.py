@@ -181,4 +181,7 @@ class SimulationViews:
             self.a["params"].to_numpy().astype(float),
             self.physics.vdw,
             bonds=self._bond_network() if self.bonded else None,
+            rolling_springs=(
+                self.a["nbr_psi"].to_numpy().astype(float) if self.physics.rolling else None
+            ),
         )

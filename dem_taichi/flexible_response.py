@@ -52,6 +52,7 @@ from dem_taichi.linear_response import (
     kept_network,
     pair_jacobians,
     relaxed_response,
+    rolling_terms,
 )
 
 __all__ = [
@@ -112,7 +113,8 @@ def _rod_frames(snapshot: NetworkSnapshot):
 def disc_forces_and_torques(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces):
     """Inter-rod force (N n_s, 2) and torque about its own centre (N n_s,) on every disc.
 
-    Both discs of a pair get the torque −(r/2) × f (contact point at the overlap midpoint).
+    Both discs of a pair get the torque −(r/2) × f (contact point at the overlap midpoint);
+    the rolling couple adds M to disc i and −M to disc j.
     """
     n_discs = snapshot.n_rods * snapshot.n_spheres
     discs = np.concatenate([snapshot.pair_i, snapshot.pair_j])
@@ -124,7 +126,8 @@ def disc_forces_and_torques(snapshot: NetworkSnapshot, pairs: forcelaw.PairForce
         axis=1,
     )
     moment = -0.5 * forcelaw.cross(pairs.separation, pairs.force)
-    torque = np.bincount(discs, np.concatenate([moment, moment]), n_discs)
+    roll = pairs.rolling_moment
+    torque = np.bincount(discs, np.concatenate([moment + roll, moment - roll]), n_discs)
     return force, torque
 
 
@@ -241,10 +244,11 @@ def flexible_response(
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
 
     zero = np.zeros((snapshot.n_pairs, 2))
+    kappa, slope = rolling_terms(snapshot, pairs, sliding_contacts == "free", variant)
     k_pair, j_pair = pair_jacobians(
         pairs, zero, zero, pairs.separation, variant.normal_stiffness(snapshot, pairs),
         variant.k_t(snapshot), snapshot.mu, snapshot.k_n, sliding_free, include_geometric,
-        variant.rolling_stiffness,
+        kappa, slope,
     )  # fmt: skip
 
     lam, residual = bond_pre_forces(snapshot, pairs)

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dem_taichi.rolling import rolling_moment
 from dem_taichi.snapshot import NetworkSnapshot
 
 __all__ = [
@@ -328,7 +329,10 @@ class PairForces:
         normal_stiffness (P,) -df/dρ (contact + long-range + vdW);
         tangential_force (P, 2) F_t (capped, zero for non-contacts); sliding (P,) bool at the cap;
         force (P, 2) total force on disc i from disc j, f n + F_t;
-        contact_point (P, 2) x_c = x_i - r_ij/2; branch (P, 2) l_PQ.
+        contact_point (P, 2) x_c = x_i - r_ij/2; branch (P, 2) l_PQ;
+        rolling_moment (P,) the couple M on rod P (−M on Q) of the rolling spring
+        (:mod:`dem_taichi.rolling`; 0 without rolling resistance); rolling_sliding (P,) bool
+        at the rolling cap.
     """
 
     separation: np.ndarray
@@ -347,13 +351,16 @@ class PairForces:
     force: np.ndarray
     contact_point: np.ndarray
     branch: np.ndarray
+    rolling_moment: np.ndarray
+    rolling_sliding: np.ndarray
 
 
 def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
     """Normal and tangential force of every listed pair of a static snapshot [M §1.2, I].
 
     f = f_c + f_LR + f_W along n; F_t = -k_t ξ_t capped at μ f_c for contacts (ξ_t: the snapshot's
-    spring projected on the tangent plane), zero for non-contacts.
+    spring projected on the tangent plane), zero for non-contacts; the rolling couple
+    M = −κ_r ψ capped at μ_r d_eff f_c at contacts (at the cap within 1e-6: ``rolling_sliding``).
     """
     separation = pair_separation(snapshot)
     distance = np.linalg.norm(separation, axis=-1)
@@ -384,6 +391,11 @@ def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
     discs = disc_positions(
         snapshot.rod_position, snapshot.rod_angle, snapshot.n_spheres, snapshot.spacing
     )
+    kappa, cap = snapshot.rolling_stiffness, snapshot.rolling_cap
+    moment, _, _ = rolling_moment(snapshot.pair_rolling_spring, 0.0, kappa, 0.0, cap, f_contact)
+    moment = np.where(in_contact, moment, 0.0)
+    limit = cap * np.abs(f_contact)
+    rolling_sliding = in_contact & (kappa > 0.0) & (np.abs(moment) >= limit * (1.0 - 1e-6))
     return PairForces(
         separation=separation,
         distance=distance,
@@ -401,6 +413,8 @@ def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
         force=force,
         contact_point=discs[snapshot.pair_i] - 0.5 * separation,
         branch=branch_vectors(snapshot),
+        rolling_moment=moment,
+        rolling_sliding=rolling_sliding,
     )
 
 
@@ -408,7 +422,8 @@ def rod_forces_and_torques(snapshot: NetworkSnapshot) -> tuple[np.ndarray, np.nd
     """Total force (N, 2) and torque (N,) on every rod from all listed pairs.
 
     Rod P (disc i) receives F_ij and torque (x_c - X_P) × F_ij; rod Q (disc j, image at
-    X_Q + shift) receives -F_ij and torque (x_c - X_Q - shift) × (-F_ij).
+    X_Q + shift) receives -F_ij and torque (x_c - X_Q - shift) × (-F_ij); the rolling couple
+    adds M to P and −M to Q.
     """
     pairs = pair_forces(snapshot)
     n_rods = snapshot.n_rods
@@ -424,7 +439,12 @@ def rod_forces_and_torques(snapshot: NetworkSnapshot) -> tuple[np.ndarray, np.nd
         ],
         axis=1,
     )
-    moments = np.concatenate([cross(lever_i, pairs.force), -cross(lever_j, pairs.force)])
+    moments = np.concatenate(
+        [
+            cross(lever_i, pairs.force) + pairs.rolling_moment,
+            -cross(lever_j, pairs.force) - pairs.rolling_moment,
+        ]
+    )
     torque = np.bincount(rods, moments, n_rods)
     return force, torque
 
@@ -445,17 +465,19 @@ class PotentialEnergy:
     """Stored energy of a snapshot [force·length], by interaction.
 
     contact: Σ ½ k_n δ²; tangential: Σ ½ k_t |ξ_t|² over contacts (ξ_t capped, |k_t ξ_t| <= μ f_c);
-    long_range: Σ U_LR; van_der_waals: Σ U_W; total: their sum.
+    long_range: Σ U_LR; van_der_waals: Σ U_W; rolling: Σ ½ κ_r ψ² over contacts (ψ capped);
+    total: their sum.
     """
 
     contact: float
     tangential: float
     long_range: float
     van_der_waals: float
+    rolling: float = 0.0
 
     @property
     def total(self) -> float:
-        return self.contact + self.tangential + self.long_range + self.van_der_waals
+        return self.contact + self.tangential + self.long_range + self.van_der_waals + self.rolling
 
 
 def potential_energy(snapshot: NetworkSnapshot) -> PotentialEnergy:
@@ -467,7 +489,11 @@ def potential_energy(snapshot: NetworkSnapshot) -> PotentialEnergy:
     if snapshot.k_t > 0.0:
         spring_t = -pairs.tangential_force / snapshot.k_t
         tangential = float(0.5 * snapshot.k_t * np.sum(spring_t**2))
+    rolling = 0.0
+    if snapshot.rolling_stiffness > 0.0:
+        rolling = float(0.5 * np.sum(pairs.rolling_moment**2) / snapshot.rolling_stiffness)
     return PotentialEnergy(
+        rolling=rolling,
         contact=float(np.sum(contact_potential(pairs.overlap, snapshot.k_n))),
         tangential=tangential,
         long_range=float(

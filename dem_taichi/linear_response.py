@@ -75,6 +75,7 @@ from dem_taichi.stiffness_matrices import (
     kept_network,
     network_matrices,
     pair_jacobians,
+    rolling_terms,
 )
 
 # the matrices (stiffness_matrices) and the snapshot (snapshot) are defined below this module
@@ -93,6 +94,7 @@ __all__ = [
     "network_matrices",
     "pair_jacobians",
     "relaxed_response",
+    "rolling_terms",
     "voigt_stiffness",
 ]
 

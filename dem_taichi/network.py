@@ -69,13 +69,15 @@ def network_snapshot(
     params: np.ndarray,
     vdw: bool,
     bonds=None,
+    rolling_springs: np.ndarray | None = None,
 ) -> NetworkSnapshot:
     """The snapshot of the interacting ``entries`` (:func:`interacting_entries`): disc positions
     ``disc_x`` (M, 2), list springs ξ (M, K), cell ``lengths``, wrapped centroids and angles,
     the rod ``geometry``, ``species`` (charge, F_max, k_a) and the runtime ``params`` (k_n, k_t,
     μ, van der Waals when ``vdw``); ``bonds`` (a :class:`dem_taichi.snapshot.BondNetwork`) for
     bonded rods, whose bodies are discs (``geometry`` of one disc, centroids contiguous along
-    each rod)."""
+    each rod); ``rolling_springs`` ψ (M, K) with rolling resistance (κ_r and the cap from
+    ``params``)."""
     i, k, packed, bits = entries
     j = packed // L.IMAGE_CODES
     code = packed % L.IMAGE_CODES
@@ -94,6 +96,9 @@ def network_snapshot(
     touching = (bits & L.PAIR_CONTACT) != 0
     xi = np.where(touching, xi, 0.0)
     charge, f_max, k_a = species
+    psi = None
+    if rolling_springs is not None:
+        psi = np.where(touching, rolling_springs[i, k], 0.0)
     return NetworkSnapshot(
         cell_lengths=lengths.copy(),
         rod_position=wrapped,
@@ -116,4 +121,7 @@ def network_snapshot(
         tangential_spring=xi[:, None] * tangent,
         sliding=(bits & L.PAIR_SLIDING) != 0,
         bonds=bonds,
+        rolling_spring=psi,
+        rolling_stiffness=float(params[L.P_ROLL_K]) if psi is not None else 0.0,
+        rolling_cap=float(params[L.P_ROLL_CAP]) if psi is not None else 0.0,
     )

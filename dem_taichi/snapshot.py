@@ -93,6 +93,11 @@ class NetworkSnapshot:
         bonds: the bonds of bonded rods (:class:`BondNetwork`; then the bodies are discs and
             ``charge``, ``f_max``, ``k_a`` have one entry per place in a rod), None for rigid
             rods.
+        rolling_spring: (P,) rolling spring ψ [rad] of each pair (:mod:`dem_taichi.rolling`; 0
+            for non-contacts); None: all 0 (:attr:`pair_rolling_spring`).
+        rolling_stiffness: κ_r = k_r d_eff² [force·length/rad] of the contacts' rolling springs
+            (0: no rolling resistance).
+        rolling_cap: μ_r d_eff [length], the rolling moment cap per unit contact force.
     """
 
     cell_lengths: np.ndarray
@@ -116,6 +121,9 @@ class NetworkSnapshot:
     tangential_spring: np.ndarray
     sliding: np.ndarray
     bonds: BondNetwork | None = None
+    rolling_spring: np.ndarray | None = None
+    rolling_stiffness: float = 0.0
+    rolling_cap: float = 0.0
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -123,7 +131,8 @@ class NetworkSnapshot:
         if n_s != self.n_spheres or n_s < 1:
             raise ValueError(f"NetworkSnapshot.n_spheres = {self.n_spheres!r}: need an int >= 1")
         put(self, "n_spheres", n_s)
-        for name in ("spacing", "diameter", "disc_mass", "k_n", "k_t", "mu", "vdw_f_max", "vdw_k"):
+        scalars = ("spacing", "diameter", "disc_mass", "k_n", "k_t", "mu", "vdw_f_max", "vdw_k")
+        for name in (*scalars, "rolling_stiffness", "rolling_cap"):
             value = float(getattr(self, name))
             if not np.isfinite(value) or value < 0.0:
                 raise ValueError(f"NetworkSnapshot.{name} = {value!r}: need a finite value >= 0")
@@ -196,6 +205,11 @@ class NetworkSnapshot:
         put(self, "pair_shift", shift)
         put(self, "tangential_spring", spring)
         put(self, "sliding", _as_array("sliding", self.sliding, bool, (n_pairs,)))
+        if self.rolling_spring is not None:
+            rolling = _as_array("rolling_spring", self.rolling_spring, float, (n_pairs,))
+            if not np.all(np.isfinite(rolling)):
+                raise ValueError("NetworkSnapshot.rolling_spring: non-finite values")
+            put(self, "rolling_spring", rolling)
         if self.bonds is not None:
             bonds = self.bonds
             if bonds.g.size and bonds.g.max() + 1 >= n_rods:
@@ -213,6 +227,13 @@ class NetworkSnapshot:
         """Index into ``charge``/``f_max``/``k_a`` of every global disc index (its place s in
         its rod)."""
         return np.asarray(disc) % self.charge.shape[0]
+
+    @property
+    def pair_rolling_spring(self) -> np.ndarray:
+        """(P,) ψ of every pair: ``rolling_spring``, or zeros where it is None."""
+        if self.rolling_spring is None:
+            return np.zeros(self.n_pairs)
+        return self.rolling_spring
 
     @property
     def n_rods(self) -> int:

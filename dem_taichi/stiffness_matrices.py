@@ -28,6 +28,7 @@ __all__ = [
     "kept_network",
     "network_matrices",
     "pair_jacobians",
+    "rolling_terms",
 ]
 
 
@@ -116,7 +117,8 @@ class StiffnessVariant:
             relative rotation of the two bodies (torque -κ_r (φ_P - φ_Q) on P, +κ_r (φ_P - φ_Q)
             on Q; MercuryDPM's rolling spring k_r gives κ_r = k_r d_eff², with d_eff = r = d/2
             for equal spheres as in model.md §1.7). It carries no force, hence no stress term;
-            always stuck (no rolling cap μ_r |f_n|).
+            always stuck (no rolling cap μ_r |f_n|). Added to the engine's own rolling springs
+            (the snapshot's, :func:`rolling_terms`), which it leaves as they are.
     """
 
     tangential_stiffness: float | None = None
@@ -147,6 +149,29 @@ class StiffnessVariant:
 ENGINE_STIFFNESS = StiffnessVariant()
 
 
+def rolling_terms(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces, sliding_free: bool,
+                  variant: StiffnessVariant = ENGINE_STIFFNESS):  # fmt: skip
+    """(κ (P,), slope (P,)): the rolling stiffness of every pair and, at the rolling cap, the
+    slope of the capped couple with the overlap.
+
+    The engine's rolling springs (:mod:`dem_taichi.rolling`): κ_r at contacts whose couple is
+    below the cap; at the cap (``sliding_free``, as sliding contacts are free) the couple
+    M = ±μ_r d_eff k_n δ follows the overlap only (κ 0, slope sign(M) μ_r d_eff k_n). With
+    ``sliding_free`` False every contact's rolling spring is stuck. The variant's rolling
+    stiffness is added at every contact.
+    """
+    contact = pairs.in_contact
+    kappa = np.where(contact, snapshot.rolling_stiffness + variant.rolling_stiffness, 0.0)
+    slope = np.zeros(snapshot.n_pairs)
+    if sliding_free and snapshot.rolling_stiffness > 0.0:
+        capped = pairs.rolling_sliding
+        kappa = np.where(capped, variant.rolling_stiffness, kappa)
+        slope = np.where(
+            capped, np.sign(pairs.rolling_moment) * snapshot.rolling_cap * snapshot.k_n, 0.0
+        )
+    return kappa, slope
+
+
 def pair_jacobians(
     pairs: forcelaw.PairForces,
     offset_i: np.ndarray,
@@ -158,14 +183,16 @@ def pair_jacobians(
     k_n: float,
     sliding_free: np.ndarray,
     include_geometric: bool,
-    rolling_stiffness: float = 0.0,
+    rolling_stiffness: float | np.ndarray = 0.0,
+    rolling_slope: np.ndarray | None = None,
 ):  # fmt: skip
     """Per-pair K (P, 6, 4) = d(F_P, τ_P, F_Q, τ_Q)/dw and Jσ (P, 4, 4) = d(f ⊗ l)/dw.
 
     Bodies P, Q carry the two discs at offset vectors c_i = x_i - X_P and c_j = x_j - X_Q (rod
     bodies: c = o a; disc bodies: c = 0); ``branch`` l is the stress branch vector of each pair;
     ``normal_stiffness`` k_N, stuck-spring ``k_t`` and the Coulomb slope μ k_n of sliding
-    contacts; ``rolling_stiffness`` κ_r at contacts (see :class:`StiffnessVariant`).
+    contacts; ``rolling_stiffness`` κ_r at contacts (a scalar, or one per pair) and
+    ``rolling_slope`` dM/dδ of couples at the rolling cap (:func:`rolling_terms`).
     """
     perp_i = _perp(offset_i)  # d c_i / d φ_P = ẑ × c_i
     perp_j = _perp(offset_j)
@@ -220,12 +247,16 @@ def pair_jacobians(
     d_torque_j = -np.einsum("pa,pak->pk", _perp(lever_j), j_f) - geometric * np.einsum(
         "pa,pak->pk", j_force, d_lever_j
     )
-    if rolling_stiffness > 0.0:
-        roll = np.where(pairs.in_contact, rolling_stiffness, 0.0)
+    roll = np.where(pairs.in_contact, rolling_stiffness, 0.0)
+    if np.any(roll != 0.0):
         d_torque_i[:, 2] -= roll
         d_torque_i[:, 3] += roll
         d_torque_j[:, 2] += roll
         d_torque_j[:, 3] -= roll
+    if rolling_slope is not None and np.any(rolling_slope != 0.0):
+        # M_P = sign(M) μ_r d_eff k_n δ with dδ = −n·dr
+        d_torque_i -= rolling_slope[:, None] * n_b
+        d_torque_j += rolling_slope[:, None] * n_b
     k = np.empty((n_pairs, 6, 4))
     k[:, 0:2] = j_f
     k[:, 2] = d_torque_i
@@ -241,7 +272,8 @@ def pair_jacobians(
 
 def _rod_pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces,
                         sliding_free: np.ndarray, include_geometric: bool,
-                        variant: StiffnessVariant = ENGINE_STIFFNESS):  # fmt: skip
+                        variant: StiffnessVariant = ENGINE_STIFFNESS,
+                        rolling_free: bool = True):  # fmt: skip
     """:func:`pair_jacobians` for rigid-rod bodies (c = o_s a_r, centroid branch vectors)."""
     n_s = snapshot.n_spheres
     offsets = forcelaw.disc_offsets(n_s, snapshot.spacing)
@@ -253,10 +285,11 @@ def _rod_pair_jacobians(snapshot: NetworkSnapshot, pairs: forcelaw.PairForces,
     angle_j = snapshot.rod_angle[rod_j]
     axis_i = np.stack([np.cos(angle_i), np.sin(angle_i)], axis=-1)
     axis_j = np.stack([np.cos(angle_j), np.sin(angle_j)], axis=-1)
+    kappa, slope = rolling_terms(snapshot, pairs, rolling_free, variant)
     return pair_jacobians(
         pairs, o_i[:, None] * axis_i, o_j[:, None] * axis_j, pairs.branch,
         variant.normal_stiffness(snapshot, pairs), variant.k_t(snapshot), snapshot.mu,
-        snapshot.k_n, sliding_free, include_geometric, variant.rolling_stiffness,
+        snapshot.k_n, sliding_free, include_geometric, kappa, slope,
     )  # fmt: skip
 
 
@@ -395,7 +428,9 @@ def network_matrices(
     flagged = (snapshot.sliding | pairs.sliding) & pairs.in_contact
     sliding_free = flagged if sliding_contacts == "free" else np.zeros_like(flagged)
 
-    k_pair, j_sigma = _rod_pair_jacobians(snapshot, pairs, sliding_free, include_geometric, variant)
+    k_pair, j_sigma = _rod_pair_jacobians(
+        snapshot, pairs, sliding_free, include_geometric, variant, sliding_contacts == "free"
+    )
     hessian, gamma, d_q, d_g = assemble(
         k_pair[used], j_sigma[used], pairs.branch[used], rod_i[used], rod_j[used], n_rods, area,
         stress, include_geometric,

@@ -38,7 +38,11 @@ P_BOND_GN = 24  # bond stretch damping γ_bn
 P_BOND_GT = 25  # bond shear damping γ_bt
 P_BOND_GB = 26  # bond bending damping γ_bb
 P_BOND_BREAK = 27  # breakage tension F_b (≤ 0: unbreakable)
-N_PARAMS = 28
+# rolling resistance at inter-rod contacts (dem_taichi.rolling; unused without it)
+P_ROLL_K = 28  # κ_r = k_r d_eff², moment per radian of the rolling spring ψ
+P_ROLL_G = 29  # η_r = γ_r d_eff², moment damping per unit relative rotation rate
+P_ROLL_CAP = 30  # μ_r d_eff: the rolling moment cap per unit contact force
+N_PARAMS = 31
 
 # cell -----------------------------------------------------------------------------------------
 C_LX = 0
@@ -70,7 +74,7 @@ M_SXX = 0  # Σ f_x b_x over inter-rod pairs and bonds (not yet divided by the a
 M_SXY = 1  # Σ f_x b_y
 M_SYX = 2  # Σ f_y b_x
 M_SYY = 3  # Σ f_y b_y
-M_U_CONTACT = 4  # Σ ½ k_n δ² + ½ k_t ξ²
+M_U_CONTACT = 4  # Σ ½ k_n δ² + ½ k_t ξ² (+ ½ κ_r ψ² with rolling resistance)
 M_U_LONG = 5  # Σ long-range (and van der Waals) potential
 M_CONTACTS = 6  # number of disc contacts (δ > 0)
 M_LONG_PAIRS = 7  # number of disc pairs with a non-zero long-range or vdW force

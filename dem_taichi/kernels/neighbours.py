@@ -1,8 +1,8 @@
 """The half (or full) Verlet neighbour list from cell lists across periodic images, and the
 rebuild criterion (serial code: called from inside a serial loop).
 
-Entries pack disc j with its periodic image (``layout.IMAGE_*``); the tangential springs ξ of
-the previous list are carried to the pairs that remain.
+Entries pack disc j with its periodic image (``layout.IMAGE_*``); the tangential springs ξ (and
+the rolling springs ψ) of the previous list are carried to the pairs that remain.
 """
 
 import taichi as ti
@@ -35,6 +35,7 @@ from dem_taichi.kernels.layout import (
 def rebuild_lists(
     ns: T,
     full: T,
+    rolling: T,
     pos: T,
     angle: T,
     ref_pos: T,
@@ -44,9 +45,11 @@ def rebuild_lists(
     disc_off: T,
     nbr: T,
     nbr_xi: T,
+    nbr_psi: T,
     nbr_count: T,
     old_nbr: T,
     old_xi: T,
+    old_psi: T,
     old_count: T,
     cell_count: T,
     cell_start: T,
@@ -56,7 +59,8 @@ def rebuild_lists(
     params: T,
     flags: T,
 ):
-    """Cell-list build of the half Verlet list; carries ξ of surviving pairs; flags overflow.
+    """Cell-list build of the half Verlet list; carries ξ (and, with ``rolling``, the rolling
+    spring ψ) of surviving pairs; flags overflow.
 
     The old list is moved to the ``old_*`` buffers once (``F_OLD_SAVED``) so that a build that
     overflowed can be repeated after the host grew the capacity, without losing any ξ.
@@ -73,6 +77,8 @@ def rebuild_lists(
             for k in range(c):
                 old_nbr[i, k] = nbr[i, k]
                 old_xi[i, k] = nbr_xi[i, k]
+                if ti.static(rolling):
+                    old_psi[i, k] = nbr_psi[i, k]
         for r in range(n_rods):
             pos[r, 0] -= ti.floor(pos[r, 0])
             pos[r, 1] -= ti.floor(pos[r, 1])
@@ -142,10 +148,15 @@ def rebuild_lists(
                                 )
                                 nbr[i, count] = j * IMAGE_CODES + code
                                 xi_old = 0.0
+                                psi_old = 0.0
                                 for k in range(old_count[i]):
                                     if old_nbr[i, k] // IMAGE_CODES == j:
                                         xi_old = old_xi[i, k]
+                                        if ti.static(rolling):
+                                            psi_old = old_psi[i, k]
                                 nbr_xi[i, count] = xi_old
+                                if ti.static(rolling):
+                                    nbr_psi[i, count] = psi_old
                             count += 1
         if count > capacity:
             overflow = 1

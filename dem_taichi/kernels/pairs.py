@@ -37,6 +37,9 @@ from dem_taichi.kernels.layout import (
     P_MU,
     P_RATE_X,
     P_RATE_Y,
+    P_ROLL_CAP,
+    P_ROLL_G,
+    P_ROLL_K,
     P_VDW_F,
     P_VDW_K,
 )
@@ -56,6 +59,7 @@ def pair_interaction(
     offsets: T,
     nbr: T,
     nbr_xi: T,
+    nbr_psi: T,
     charge: T,
     pair_table: T,
     bond_intact: T,
@@ -69,7 +73,9 @@ def pair_interaction(
     centroid branch vector X_P − X_Q − shift. ``update``: advance ξ by v_t Δt (time step) or just
     read it (measures). Bonded rods (``phys.bonded``): every disc is a body (``ns`` = 1), species
     by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with their
-    bond intact do not interact (:mod:`dem_taichi.kernels.bonds`).
+    bond intact do not interact (:mod:`dem_taichi.kernels.bonds`). Rolling resistance
+    (``phys.rolling``): the rolling spring ψ of the entry adds the couple M (on i; −M on j) of
+    :mod:`dem_taichi.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
     """
     lx = cell[C_LX]
     ly = cell[C_LY]
@@ -96,6 +102,7 @@ def pair_interaction(
     long_active = 0
     bx = 0.0
     by = 0.0
+    m_roll = 0.0
     within = 0
     if dist2 < cut * cut:
         within = 1
@@ -143,9 +150,22 @@ def pair_interaction(
                 if ti.static(update):
                     nbr_xi[i, k] = xi
                 u_contact += 0.5 * kt * xi * xi
+            if ti.static(phys.rolling):
+                w_rel = omega[rod_i] - omega[rod_j]
+                psi = nbr_psi[i, k]
+                if ti.static(update):
+                    psi += w_rel * params[P_DT]
+                kr = params[P_ROLL_K]
+                cap_r = params[P_ROLL_CAP] * ti.abs(fc)
+                m_roll, psi = tangential_force(psi, w_rel, kr, params[P_ROLL_G], cap_r)
+                if ti.static(update):
+                    nbr_psi[i, k] = psi
+                u_contact += 0.5 * kr * psi * psi
         else:
             if ti.static(phys.friction and update):
                 nbr_xi[i, k] = 0.0
+            if ti.static(phys.rolling and update):
+                nbr_psi[i, k] = 0.0
         if ti.static(phys.long_range or phys.vdw):
             si = i % phys.chain
             sj = j % phys.chain
@@ -176,6 +196,17 @@ def pair_interaction(
         half = 0.5 * dist
         tau_i = oix * fy - oiy * fx - half * ft
         tau_j = -(ojx * fy - ojy * fx) - half * ft
+        if ti.static(phys.rolling):
+            tau_i += m_roll
+            tau_j -= m_roll
+    else:
+        # beyond the cut-off (or bonded): the springs restart at zero, as for a pair within it
+        # that does not touch; else a contact that opens and closes again within one list (no
+        # long-range shell in between) would find its old spring
+        if ti.static(update and phys.friction):
+            nbr_xi[i, k] = 0.0
+        if ti.static(update and phys.rolling):
+            nbr_psi[i, k] = 0.0
     return fx, fy, tau_i, tau_j, j, active, fc, ft, delta, u_contact, u_long, long_active, bx, by
 
 
@@ -196,6 +227,7 @@ def disc_forces(
     offsets: T,
     nbr: T,
     nbr_xi: T,
+    nbr_psi: T,
     nbr_count: T,
     charge: T,
     pair_table: T,
@@ -229,6 +261,7 @@ def disc_forces(
             offsets,
             nbr,
             nbr_xi,
+            nbr_psi,
             charge,
             pair_table,
             bond_intact,

@@ -5,9 +5,9 @@ and the force priming (the per-step parallel kernels in :mod:`.parallel`, neighb
 
 Every array is an explicit ``ti.types.ndarray`` argument of its dimension (compiled once per
 dtype and physics switches, whatever the sizes), every number that may change between calls is
-in ``params``;
-the physics switches (friction, long range, van der Waals) are a frozen dataclass passed as
-``ti.template()`` so that physics a scene switches off is not compiled at all.
+in ``params``; the physics switches (friction, long range, van der Waals, bonded rods, rolling
+resistance) are a frozen dataclass passed as ``ti.template()`` so that physics a scene switches
+off is not compiled at all.
 
 State (N rods of n_s discs, M = N n_s discs, K list capacity per disc):
   pos (N,2)        reduced centroid coordinates s: X = s ∘ L (wrapped into [0,1) at list builds)
@@ -19,7 +19,8 @@ State (N rods of n_s discs, M = N n_s discs, K list capacity per disc):
   disc_x (M,2)     absolute disc positions X + o_s a; disc_off (M,2) = o_s a
   nbr (M,K) int32  half list: entries j*IMAGE_CODES + image code for j > i, |r_ij| < r_list at build
   nbr_xi (M,K)     tangential spring ξ (scalar along t = (−n_y, n_x)) of each entry
-  old_* buffers    the previous list, read to carry ξ across rebuilds
+  nbr_psi (M,K)    rolling spring ψ of each entry (with rolling resistance; else (1,K), unused)
+  old_* buffers    the previous list, read to carry ξ and ψ across rebuilds
 
 Time integration (leapfrog kick–drift form of velocity Verlet, per step):
   [rebuild the list if 2(max displacement + v_max Δt) + reach·|ΔL/L_build| ≥ skin]
@@ -163,9 +164,11 @@ def run_steps_serial(
     disc_off: nd2,
     nbr: nd2,
     nbr_xi: nd2,
+    nbr_psi: nd2,
     nbr_count: nd1,
     old_nbr: nd2,
     old_xi: nd2,
+    old_psi: nd2,
     old_count: nd1,
     cell_count: nd2,
     cell_start: nd2,
@@ -189,6 +192,7 @@ def run_steps_serial(
                 rebuild_lists(
                     ns,
                     False,
+                    phys.rolling,
                     pos,
                     angle,
                     ref_pos,
@@ -198,9 +202,11 @@ def run_steps_serial(
                     disc_off,
                     nbr,
                     nbr_xi,
+                    nbr_psi,
                     nbr_count,
                     old_nbr,
                     old_xi,
+                    old_psi,
                     old_count,
                     cell_count,
                     cell_start,
@@ -254,6 +260,7 @@ def run_steps_serial(
                         offsets,
                         nbr,
                         nbr_xi,
+                        nbr_psi,
                         nbr_count,
                         charge,
                         pair_table,
@@ -290,9 +297,11 @@ def prime_forces(
     disc_off: nd2,
     nbr: nd2,
     nbr_xi: nd2,
+    nbr_psi: nd2,
     nbr_count: nd1,
     old_nbr: nd2,
     old_xi: nd2,
+    old_psi: nd2,
     old_count: nd1,
     cell_count: nd2,
     cell_start: nd2,
@@ -317,6 +326,7 @@ def prime_forces(
             rebuild_lists(
                 ns,
                 full,
+                phys.rolling,
                 pos,
                 angle,
                 ref_pos,
@@ -326,9 +336,11 @@ def prime_forces(
                 disc_off,
                 nbr,
                 nbr_xi,
+                nbr_psi,
                 nbr_count,
                 old_nbr,
                 old_xi,
+                old_psi,
                 old_count,
                 cell_count,
                 cell_start,
@@ -360,6 +372,7 @@ def prime_forces(
                     offsets,
                     nbr,
                     nbr_xi,
+                    nbr_psi,
                     nbr_count,
                     charge,
                     pair_table,

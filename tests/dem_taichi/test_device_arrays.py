@@ -23,16 +23,21 @@ def test_names_and_state_keys_are_unique():
 
 def test_shapes_follow_the_sizes():
     sizes = {"rods": 3, "discs": 15, "spheres": 5, "species": 5, "capacity": 7, "cells": 4}
+    sizes["rolling_discs"] = 1  # no rolling resistance: the rolling springs take one row
     shapes = {a.name: a.shape_for(sizes) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (3, 2) and shapes["nbr"] == (15, 7) and shapes["pair_out"] == (15, 7, 4)
+    assert shapes["nbr_psi"] == (1, 7) and shapes["old_psi"] == (1, 7)
     assert shapes["cell_count"] == (4, 4) and shapes["pair_table"] == (5, 5, 3)
     # bonded rods: the bodies are the discs, one disc per body, the species per place in a rod
     bonded = {"rods": 15, "discs": 15, "spheres": 1, "species": 5, "capacity": 7, "cells": 4}
+    bonded["rolling_discs"] = 15  # with rolling resistance: one spring per list entry
     shapes = {a.name: a.shape_for(bonded) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (15, 2) and shapes["offsets"] == (1,) and shapes["charge"] == (5,)
-    assert shapes["bond_intact"] == (15,)
+    assert shapes["bond_intact"] == (15,) and shapes["nbr_psi"] == (15, 7)
     grown = {a.name for a in DEVICE_ARRAYS if a.grows}
-    assert grown == {"nbr", "nbr_xi", "old_nbr", "old_xi", "pair_out", "pair_flags"}
+    assert grown == {
+        "nbr", "nbr_xi", "nbr_psi", "old_nbr", "old_xi", "old_psi", "pair_out", "pair_flags"
+    }  # fmt: skip
     with pytest.raises(ValueError, match="state key"):
         DeviceArray("x", "real", ("rods",), "state")
 
