@@ -6,18 +6,23 @@ jammed at p = ``--pressure`` by the protocol's building blocks with rigid rods
 (straight chains in their reference state), and is relaxed briefly at fixed cell. Each is then
 timed during a slow strain-controlled compression (ε̇ = 1e-4, as in bench_dem), serial.
 
+Rows: rigid, bonded, and each with rolling resistance at the contacts (``+rolling``: the
+study's clay drivers' MercuryDPM values, k_r = 2/5 k_n and μ_r = μ, ``ROLLING``; the rolling
+springs start unloaded on the same packing).
+
 Columns: steps/s and disc-steps/s; the time step Δt each model allows (dt_safety × the stiffest
 of the contact duration and the chain's bond period, ``Scene.time_step``); simulated time per
 CPU-second (what a protocol pays: the cost of the bonded model relative to the rigid one is the
 ratio of that column; CPU time of the single-threaded serial process, so that other jobs on the
 machine change it less than the wall time). ``--stability``: the largest stable dt_safety of
 the bonded model (300 rods, jammed, 20 000 steps at fixed cell per value; as
-``bench_dem.py --stability``).
+``bench_dem.py --stability``); ``--rolling``: the same with rolling resistance.
 
 Usage::
 
     .venv/bin/python benchmarks/bench_bonded.py              # paper size, serial
     .venv/bin/python benchmarks/bench_bonded.py --stability  # dt_safety limit of bonded rods
+    .venv/bin/python benchmarks/bench_bonded.py --stability --rolling  # ... with rolling resistance
 
 Writes benchmarks/results/bonded_bench.csv (or bonded_stability.csv) and prints the table.
 """
@@ -44,6 +49,13 @@ from dem_taichi.scene import GasState  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+def rolling(scene):
+    """The scene with rolling resistance: k_r = 2/5 k_n, μ_r = μ (MercuryDPM's clay drivers,
+    ClayParticlesArianna.cpp)."""
+    c = scene.contact
+    return scene.replace(contact={"rolling_stiffness": 0.4 * c.k_n, "rolling_friction": c.mu})
+
+
 def bonded_state(scene, rigid_state, arch, relax_steps=4000):
     """The bonded simulation's state on the rigid packing ``rigid_state``: every rod's discs as
     bodies at rest, relaxed ``relax_steps`` at fixed cell (the chains give way where the rigid
@@ -67,7 +79,13 @@ def speed(args):
     print(f"bonded start: p = {b_measures['mean_stress']:.4g}, UFR = "
           f"{b_measures['unbalanced_force_ratio']:.3g}")  # fmt: skip
     rows = []
-    for name, scene, start in (("rigid", rigid_scene, state), ("bonded", bonded_scene, b_state)):
+    cases = (
+        ("rigid", rigid_scene, state),
+        ("bonded", bonded_scene, b_state),
+        ("rigid+rolling", rolling(rigid_scene), state),
+        ("bonded+rolling", rolling(bonded_scene), b_state),
+    )
+    for name, scene, start in cases:
         case = time_case(scene, args.arch, "serial", False, start, args.steps)
         dt = scene.time_step
         rows.append(
@@ -87,7 +105,7 @@ def speed(args):
             }
         )
         print(rows[-1], flush=True)
-    rigid, bonded = rows
+    rigid, bonded = rows[:2]
     for row in rows:
         # per CPU-second of the single-threaded serial process: robust to other jobs' load
         row["cost_per_step_vs_rigid"] = round(rigid["steps_per_cpu_s"] / row["steps_per_cpu_s"], 3)
@@ -99,8 +117,9 @@ def speed(args):
         f"{args.pressure}, {args.steps} steps at strain rate 1e-4, serial, {args.arch}"
     )
     _write(RESULTS / "bonded_bench.csv", rows, header)
-    print(f"bonded costs {bonded['cost_per_step_vs_rigid']}x rigid per step, "
-          f"{bonded['cost_per_time_vs_rigid']}x per simulated time")  # fmt: skip
+    for row in rows[1:]:
+        print(f"{row['rod_model']} costs {row['cost_per_step_vs_rigid']}x rigid per step, "
+              f"{row['cost_per_time_vs_rigid']}x per simulated time")  # fmt: skip
 
 
 def stability(args):
@@ -113,9 +132,11 @@ def stability(args):
         scene = load_scene("paper_bonded").replace(
             particles={"n_rods": 300}, bonds={"bending": bending}
         )
+        if args.rolling:
+            scene = rolling(scene)
         start, start_measures = bonded_state(scene, state, args.arch)
         p_start = start_measures["mean_stress"]
-        base = min(scene.contact_duration, scene.bond_period)
+        base = min(scene.contact_duration, scene.bond_period, scene.rolling_period)
         for safety in (0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5):
             sim = Simulation(scene, arch=args.arch)
             sim.set_state(start)
@@ -132,9 +153,11 @@ def stability(args):
             rows.append({"bending": bending, "dt_safety": safety, "outcome": outcome,
                          "p_start": round(p_start, 4), "wall_s": wall})  # fmt: skip
             print(rows[-1], flush=True)
-    _write(RESULTS / "bonded_stability.csv", rows,
-           f"# bench_bonded.py --stability: 300 bonded rods of 5 discs (acidic), jammed at p = "
-           f"{args.pressure}, 20000 steps at fixed cell per dt_safety")  # fmt: skip
+    suffix = "_rolling" if args.rolling else ""
+    with_rolling = " with rolling resistance (k_r = 2/5 k_n, μ_r = μ)" if args.rolling else ""
+    _write(RESULTS / f"bonded_stability{suffix}.csv", rows,
+           f"# bench_bonded.py --stability: 300 bonded rods of 5 discs (acidic){with_rolling}, "
+           f"jammed at p = {args.pressure}, 20000 steps at fixed cell per dt_safety")  # fmt: skip
 
 
 def _write(path, rows, header):
@@ -153,6 +176,7 @@ def main():
     parser.add_argument("--steps", type=int, default=3000)
     parser.add_argument("--pressure", type=float, default=10.0)
     parser.add_argument("--stability", action="store_true", help="measure the dt_safety limit")
+    parser.add_argument("--rolling", action="store_true", help="with --stability: rolling on")
     args = parser.parse_args()
     if args.stability:
         stability(args)

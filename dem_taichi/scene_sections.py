@@ -1,0 +1,213 @@
+"""The core sections of a scene as frozen dataclasses: ``[scene]``, ``[particles]``,
+``[contact]``, ``[bonds]``, ``[long_range]``, ``[van_der_waals]``, ``[integration]``,
+``[control]``, ``[output]``.
+
+Each field carries its allowed range or choices in ``metadata`` (:mod:`dem_taichi.sections`),
+checked by the generic loader of :mod:`dem_taichi.config`, which documents every key and
+re-exports these classes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from dem_taichi.presets import PRESET_NAMES
+from dem_taichi.sections import SceneError, SceneSection
+from dem_taichi.sections import field_choices as _choices
+from dem_taichi.sections import field_range as _range
+
+__all__ = [
+    "SceneInfo",
+    "Particles",
+    "Bonds",
+    "Contact",
+    "LongRange",
+    "VanDerWaals",
+    "Integration",
+    "Control",
+    "Output",
+]
+
+
+@dataclass(frozen=True)
+class SceneInfo(SceneSection):
+    SECTION = "scene"
+    name: str = "unnamed"
+    seed: int = field(default=0, metadata=_range(0, 2**31 - 1))
+    description: str = ""
+    preset: str = field(default="", metadata=_choices(*PRESET_NAMES))
+
+
+@dataclass(frozen=True)
+class Particles(SceneSection):
+    SECTION = "particles"
+    n_rods: int = field(default=40, metadata=_range(1, 10_000_000))
+    n_spheres: int = field(default=5, metadata=_range(1, 64))
+    diameter: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    spacing: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    disc_mass: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    initial_area_fraction: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    initial_speed: float = field(default=0.01, metadata=_range(0.0, None))
+    rod_model: str = field(
+        default="rigid",
+        metadata=_choices(
+            "rigid",
+            "bonded",
+            doc="'rigid': each rod one rigid clump of discs (cheapest, larger Δt); 'bonded': "
+            "every disc a body, neighbours joined by elastic bonds ([bonds]), rods bend and "
+            "may break (the study's MercuryDPM model)",
+        ),
+    )
+
+    def check(self) -> None:
+        if self.rod_model == "bonded" and self.n_spheres < 2:
+            raise SceneError(
+                f"[particles] rod_model = 'bonded' needs n_spheres >= 2 (a rod of one disc has "
+                f"no bonds); n_spheres = {self.n_spheres}"
+            )
+        if self.spacing > self.diameter:
+            raise SceneError(
+                f"[particles] spacing = {self.spacing} > diameter = {self.diameter}: "
+                "discs of a rod must touch or overlap (allowed (0, diameter])"
+            )
+
+
+@dataclass(frozen=True)
+class Contact(SceneSection):
+    SECTION = "contact"
+    k_n: float = field(default=1.0e5, metadata=_range(0.0, None, lo_open=True))
+    e_n: float | None = field(
+        default=None, metadata={**_range(0.0, 1.0, lo_open=True), "optional": True}
+    )
+    gamma_n: float | None = field(default=None, metadata={**_range(0.0), "optional": True})
+    restitution_model: str = field(
+        default="discrete",
+        metadata=_choices(
+            "discrete",
+            "continuous",
+            doc="how γ_n follows from e_n: 'discrete' calibrates γ_n on the engine's own "
+            "leapfrog collision at the scene's Δt (phase-averaged e_n exact); 'continuous' "
+            "uses e_n = exp(−γ_n t_c/m) (realised e_n off by O(Δt/t_c)); unused with gamma_n",
+        ),
+    )
+    k_t: float = field(default=2.0e4, metadata=_range(0.0))
+    gamma_t: float = field(default=0.0, metadata=_range(0.0))
+    mu: float = field(default=0.5, metadata=_range(0.0))
+    friction: bool = True
+    rolling_stiffness: float = field(
+        default=0.0,
+        metadata=_range(
+            0.0,
+            None,
+            doc="k_r [force/length] of the rolling spring at inter-rod contacts, moment "
+            "stiffness k_r (d/2)² (MercuryDPM's; dem_taichi.rolling); 0: no rolling resistance",
+        ),
+    )
+    rolling_friction: float = field(
+        default=0.0,
+        metadata=_range(0.0, None, doc="μ_r: rolling moment cap μ_r (d/2) |f_c|; > 0 with k_r"),
+    )
+    rolling_damping: float = field(
+        default=0.0,
+        metadata=_range(0.0, None, doc="γ_r [force·time/length]: moment damping γ_r (d/2)² ω_rel"),
+    )
+
+    def check(self) -> None:
+        if self.e_n is not None and self.gamma_n is not None:
+            raise SceneError("[contact] give either e_n or gamma_n, not both")
+        if self.rolling_stiffness > 0.0 and self.rolling_friction <= 0.0:
+            raise SceneError(
+                f"[contact] rolling_stiffness = {self.rolling_stiffness} needs rolling_friction "
+                "> 0 (the moment cap μ_r (d/2) |f_c|; a large value, e.g. 1e6, never slips)"
+            )
+        if self.rolling_stiffness == 0.0 and (self.rolling_friction or self.rolling_damping):
+            raise SceneError(
+                "[contact] rolling_friction / rolling_damping are used only with "
+                "rolling_stiffness > 0 (rolling resistance off): set rolling_stiffness or "
+                "remove them"
+            )
+
+
+@dataclass(frozen=True)
+class Bonds(SceneSection):
+    """Intra-rod bonds of ``rod_model = "bonded"`` (model.md §1.7; law in
+    :mod:`dem_taichi.bonds`), as ratios to the contact stiffness k_n.
+
+    Defaults: k_bn = k_n and k_bt = 0.2 k_n (the scenes' k_t/k_n), κ_b = 0.3 k_n d² (the
+    stiffness-anisotropy experiments' range 0.3–1; 0.1 is at the buckling edge at p = 100);
+    damping ratio 0.2 (near the contacts' e_n = 0.5, ζ = 0.215); unbreakable.
+    """
+
+    SECTION = "bonds"
+    normal: float = field(
+        default=1.0, metadata=_range(0.0, None, lo_open=True, doc="k_bn / k_n (stretch)")
+    )
+    shear: float = field(
+        default=0.2, metadata=_range(0.0, None, lo_open=True, doc="k_bt / k_n (shear)")
+    )
+    bending: float = field(
+        default=0.3, metadata=_range(0.0, None, lo_open=True, doc="κ_b / (k_n d²) (bending)")
+    )
+    damping_ratio: float = field(
+        default=0.2,
+        metadata=_range(0.0, 1.0, doc="ζ of each bond mode, γ = 2ζ sqrt(k μ), μ = m/2 or I/2"),
+    )
+    breakage_force: float = field(
+        default=0.0,
+        metadata=_range(
+            0.0, None, doc="tension F_b at which a bond breaks for good (0: unbreakable)"
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class LongRange(SceneSection):
+    SECTION = "long_range"
+    enabled: bool = False
+    pattern: str = field(default="acidic", metadata=_choices("acidic", "basic", "neutral"))
+    f_max_edge: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+    f_max_inner: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+    k_a_edge: float = field(default=20.0, metadata=_range(0.0, None, lo_open=True))
+    k_a_inner: float = field(default=20.0, metadata=_range(0.0, None, lo_open=True))
+
+
+@dataclass(frozen=True)
+class VanDerWaals(SceneSection):
+    SECTION = "van_der_waals"
+    enabled: bool = False
+    f_max: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
+    k: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
+
+
+@dataclass(frozen=True)
+class Integration(SceneSection):
+    SECTION = "integration"
+    dt_safety: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    local_damping: float = field(default=0.2, metadata=_range(0.0, 1.0, hi_open=True))
+    steps_per_call: int = field(default=100, metadata=_range(1, 1_000_000))
+    skin: float = field(default=0.3, metadata=_range(0.0, None, lo_open=True))
+    execution: str = field(
+        default="auto", metadata=_choices("auto", "serial", "parallel", "gather")
+    )
+    max_overlap: float = field(
+        default=0.2, metadata=_range(0.0, 1.0, lo_open=True, doc="blow-up bound on δ/d")
+    )
+    max_kinetic_energy_per_rod: float = field(
+        default=1.0e3, metadata=_range(0.0, None, lo_open=True)
+    )
+
+
+@dataclass(frozen=True)
+class Control(SceneSection):
+    SECTION = "control"
+    inertial_number_max: float = field(default=1.0e-3, metadata=_range(0.0, 1.0, lo_open=True))
+    compression_strain_rate: float = field(default=1.0e-3, metadata=_range(0.0, None, lo_open=True))
+    target_specific_volume: float = field(default=2.2, metadata=_range(1.0, None, lo_open=True))
+    relax_steps: int = field(default=5000, metadata=_range(0))
+
+
+@dataclass(frozen=True)
+class Output(SceneSection):
+    SECTION = "output"
+    every: int = field(default=1000, metadata=_range(1))
+    checkpoint_every: int = field(default=0, metadata=_range(0))
