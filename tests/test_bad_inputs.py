@@ -203,6 +203,8 @@ DEM_CASES = [
     Case("run-set-no-section", "dem", (*RUN, "--set", "mu=0.2"), ("expected section.key=value",), smoke_with()),  # noqa: E501
     Case("protocol-set-out-of-range", "dem", (*PROTOCOL, "--set", "protocol.target_mean_stress=-3"), ("target_mean_stress = -3.0 is out of range",), smoke_with()),  # noqa: E501
     Case("protocol-set-bonds-rigid", "dem", (*PROTOCOL, "--set", "bonds.bending=1"), ("[bonds] is used only with",), smoke_with()),  # noqa: E501
+    Case("protocol-set-rolling-no-cap", "dem", (*PROTOCOL, "--set", "contact.rolling_stiffness=1e4"), ("rolling_stiffness = 10000.0 needs rolling_friction > 0",), smoke_with()),  # noqa: E501
+    Case("run-rolling-negative", "dem", RUN, ("[contact] rolling_friction", "out of range"), smoke_with(contact={"rolling_stiffness": 1e4, "rolling_friction": -0.5})),  # noqa: E501
     Case("protocol-module-empty-scene", "protocol", ("{scene}", "--out", "{out}"), ("is empty",), ""),  # noqa: E501
 ]
 
