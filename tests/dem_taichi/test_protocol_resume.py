@@ -103,6 +103,9 @@ def test_resume_in_worker_processes_merges_saved_and_new_branches(interrupted):
     _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
 
 
+# The two command-line signal tests run real protocol processes (~50 s each): `make test-slow`
+# runs them; the in-process resume tests above keep the bitwise check in the default suite.
+@pytest.mark.slow
 def test_sigint_on_the_command_line_then_resume(tmp_path):
     """Ctrl-C (SIGINT) once state A is saved: exit code 130, one line that says what is saved
     and the command that resumes; that command then finishes the run."""
@@ -132,6 +135,7 @@ def test_sigint_on_the_command_line_then_resume(tmp_path):
     assert (out / "summary.json").exists()
 
 
+@pytest.mark.slow
 def test_sigterm_with_worker_processes_stops_them(tmp_path):
     """SIGTERM to a run whose branches are in worker processes: exit code 143 and the one line;
     no worker process is left behind; the resume finishes the run."""
