@@ -59,7 +59,7 @@ class SimulationState:
                 f"state precision {state['angle'].dtype} differs from the simulation's "
                 f"{np.dtype(self._real)}"
             )
-        state = upgrade_state(state, n)
+        state = upgrade_state(state, n, self.a["params"].to_numpy())
         state = convert_neighbour_list(state, self.full_list, self.capacity)
         state = fit_rolling_spring(state, self.physics.rolling)
         capacity = state["neighbours"].shape[1]

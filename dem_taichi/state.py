@@ -135,19 +135,23 @@ def fit_rolling_spring(state: dict[str, np.ndarray], rolling: bool) -> dict[str,
     return state
 
 
-def upgrade_state(state: dict[str, np.ndarray], n_bodies: int) -> dict[str, np.ndarray]:
+def upgrade_state(
+    state: dict[str, np.ndarray], n_bodies: int, params_now: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """A state written before the bonded-rod model (``params`` of 20 entries, no
     ``bond_intact``) or before rolling resistance (28 entries) in today's layout: the new
-    parameters 0, every bond intact (the rolling springs: :func:`fit_rolling_spring`). Today's
-    states are returned as they are."""
+    parameters from ``params_now`` (the restoring simulation's, so that its bonds and rolling
+    springs stay on; 0 without it), every bond intact (the rolling springs:
+    :func:`fit_rolling_spring`). Today's states are returned as they are."""
     params = np.asarray(state["params"])
     if params.shape[0] == L.N_PARAMS and "bond_intact" in state:
         return state
     state = dict(state)
     if params.shape[0] < L.N_PARAMS:
-        state["params"] = np.concatenate(
-            [params, np.zeros(L.N_PARAMS - params.shape[0], params.dtype)]
-        )
+        missing = np.zeros(L.N_PARAMS - params.shape[0], params.dtype)
+        if params_now is not None:
+            missing = np.asarray(params_now, dtype=params.dtype)[params.shape[0] :]
+        state["params"] = np.concatenate([params, missing])
     if "bond_intact" not in state:
         state["bond_intact"] = np.ones(n_bodies, dtype=np.int32)
     return state

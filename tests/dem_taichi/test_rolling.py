@@ -391,11 +391,17 @@ def test_scenes_without_rolling_pay_no_memory_and_refuse_rolling_states():
     state = rolling.get_state()
     with pytest.raises(ValueError, match="rolling springs"):
         plain.set_state(state)
-    # a state of a scene without rolling (or written before it) restores with ψ = 0
+    # a state of a scene without rolling (or written before it) restores with ψ = 0, and the
+    # rolling parameters it lacks are the simulation's own (rolling stays on)
+    from dem_taichi.kernels import layout as L
+
+    kappa = rolling.get_state()["params"][L.P_ROLL_K]
+    assert kappa > 0.0
     old = {k: v for k, v in plain.get_state().items() if k != "rolling_spring"}
-    old["params"] = old["params"][:28]
+    old["params"] = old["params"][: L.P_ROLL_K]
     rolling.set_state(old)
     assert not np.any(rolling.get_state()["rolling_spring"])
+    assert rolling.get_state()["params"][L.P_ROLL_K] == kappa
 
 
 # --------------------------------------------------------------------------------------------
