@@ -64,6 +64,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from dem_taichi import scene_sections
 from dem_taichi.presets import fill_preset, set_keys
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.scene_sections import (
@@ -83,15 +84,7 @@ __all__ = [
     "SceneError",
     "SceneSection",
     "Scene",
-    "SceneInfo",
-    "Particles",
-    "Bonds",
-    "Contact",
-    "LongRange",
-    "VanDerWaals",
-    "Integration",
-    "Control",
-    "Output",
+    *scene_sections.__all__,  # the core sections, re-exported
     "load_scene",
     "scene_from_dict",
     "scene_with_overrides",
@@ -238,14 +231,12 @@ class Scene:
     def rolling_period(self) -> float:
         """π/ω of the rolling spring between two free bodies (rods, or discs of bonded rods;
         inf without rolling resistance)."""
+        from dem_taichi.forcelaw import rod_inertia
         from dem_taichi.rolling import rolling_period
 
         p = self.particles
-        inertia = p.disc_mass * p.diameter**2 / 8.0
-        if not self.bonded:
-            n = p.n_spheres
-            offsets2 = sum(((s - 0.5 * (n - 1)) * p.spacing) ** 2 for s in range(n))
-            inertia = n * inertia + p.disc_mass * offsets2
+        n_body = 1 if self.bonded else p.n_spheres  # the discs of one body
+        inertia = rod_inertia(n_body, p.spacing, p.diameter, p.disc_mass)
         return rolling_period(self.rolling_parameters.stiffness, inertia)
 
     @property

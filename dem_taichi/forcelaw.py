@@ -66,6 +66,7 @@ __all__ = [
     "pair_separation",
     "potential_energy",
     "rod_forces_and_torques",
+    "rod_inertia",
     "stress_from_forces",
     "tangential_force",
     "tangential_spring_step",
@@ -252,6 +253,14 @@ def tangential_spring_step(spring, normal, relative_velocity, dt: float, k_t: fl
 def disc_offsets(n_spheres: int, spacing: float) -> np.ndarray:
     """Body-frame offsets o_s = (s - (n_s-1)/2) spacing along the rod axis, s = 0..n_s-1 [I]."""
     return (np.arange(n_spheres, dtype=float) - 0.5 * (n_spheres - 1)) * spacing
+
+
+def rod_inertia(n_spheres: int, spacing: float, diameter: float, disc_mass: float) -> float:
+    """Moment of inertia of a rigid rod of n_s uniform discs about its centroid,
+    I = Σ m o_s² + n_s m d²/8 (one disc, n_s = 1: m d²/8)."""
+    offsets = disc_offsets(n_spheres, spacing)
+    m, d = disc_mass, diameter
+    return float(m * np.sum(offsets**2) + n_spheres * m * d * d / 8.0)
 
 
 def disc_positions(rod_position, rod_angle, n_spheres: int, spacing: float) -> np.ndarray:

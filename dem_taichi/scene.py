@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dem_taichi.config import Scene, SceneError
+from dem_taichi.forcelaw import disc_offsets, rod_inertia
 from dem_taichi.gas_placement import PlacementError, place_rods
 
 __all__ = [
@@ -54,8 +55,8 @@ class RodGeometry:
 def rod_geometry(scene: Scene) -> RodGeometry:
     p = scene.particles
     n, d, sp, m = p.n_spheres, p.diameter, p.spacing, p.disc_mass
-    offsets = (np.arange(n) - (n - 1) / 2.0) * sp
-    inertia = float(m * np.sum(offsets**2) + n * m * d * d / 8.0)
+    offsets = disc_offsets(n, sp)
+    inertia = rod_inertia(n, sp, d, m)
     area = n * math.pi * d * d / 4.0 - (n - 1) * lens_area(d / 2.0, sp)
     return RodGeometry(
         n_spheres=n,
@@ -85,7 +86,7 @@ def body_geometry(scene: Scene) -> RodGeometry:
         disc_mass=m,
         offsets=np.zeros(1),
         mass=m,
-        inertia=m * d * d / 8.0,
+        inertia=rod_inertia(1, p.spacing, d, m),
         solid_area=math.pi * d * d / 4.0,
         length=d,
         max_offset=0.0,
