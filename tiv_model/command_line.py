@@ -13,13 +13,19 @@ Used by ``python -m tiv_model``, ``python -m dem_taichi`` (``run``, ``protocol``
 - ``--quiet``: no progress bars or summary lines (results asked for are still printed).
 - Ctrl-C that the command does not handle itself: ``PROG: interrupted``, exit code 130.
 
+- A full disk or an exceeded quota (``OSError`` ENOSPC or EDQUOT, also as the cause of another
+  error) is one line ``PROG: error: disk full: FILE: ...; free space or write elsewhere`` with
+  exit code 4: not bad input, the same command can succeed once there is room.
+
 Exit codes: 0 done; 1 stopped early or failed (a model error, an internal error); 2 bad input;
-3 a DEM blow-up; 128 + N stopped by signal N (130: SIGINT, 143: SIGTERM).
+3 a DEM blow-up; 4 disk full (ENOSPC/EDQUOT); 128 + N stopped by signal N (130: SIGINT,
+143: SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from collections.abc import Callable, Mapping, Sequence
 
@@ -27,11 +33,13 @@ __all__ = [
     "EXIT_OK",
     "EXIT_FAILED",
     "EXIT_USAGE",
+    "EXIT_DISK_FULL",
     "EXIT_INTERRUPTED",
     "UsageError",
     "ArgumentParser",
     "add_common_flags",
     "error_line",
+    "disk_full_error",
     "run_command",
     "int_in_range",
     "positive_float",
@@ -40,6 +48,7 @@ __all__ = [
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
+EXIT_DISK_FULL = 4
 EXIT_INTERRUPTED = 130
 
 
@@ -81,6 +90,18 @@ def _text(error: BaseException) -> str:
     return " ".join(line.strip() for line in text.splitlines() if line.strip())
 
 
+def disk_full_error(error: BaseException) -> OSError | None:
+    """The ``OSError`` ENOSPC/EDQUOT behind ``error`` (itself, its cause or its context), or None."""
+    seen: set[int] = set()
+    current: BaseException | None = error
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if isinstance(current, OSError) and current.errno in (errno.ENOSPC, errno.EDQUOT):
+            return current
+        current = current.__cause__ or current.__context__
+    return None
+
+
 def error_line(prog: str, error: BaseException, kind: str = "error") -> str:
     """``PROG: KIND: MESSAGE`` on one line (newlines of the message joined)."""
     return f"{prog}: {kind}: {_text(error)}"
@@ -118,6 +139,14 @@ def run_command(
     except Exception as error:  # noqa: BLE001 - the one handler of a command line
         if debug:
             raise
+        full = disk_full_error(error)
+        if full is not None:
+            print(
+                f"{prog}: error: disk full: {_text(full)}; free space (or raise the quota) or "
+                "write to another folder, then run the command again",
+                file=sys.stderr,
+            )
+            return EXIT_DISK_FULL
         for kind, code in (failures or {}).items():
             if isinstance(error, kind):
                 print(error_line(prog, error), file=sys.stderr)
