@@ -20,10 +20,20 @@ strain-controlled isotropic compression at ``[control] compression_strain_rate``
   (the run's own two latest kept) and at the end; ``--resume`` continues from the latest one
   exactly, and only with the run's own scene;
 - ``scene.toml``: the full scene (every key);
-- ``run.json``: the run id and the scene's hash (:mod:`dem_taichi.io.run_directory`): a fresh
-  run into a used ``--out`` is refused unless ``--overwrite``;
+- ``run.json``: the run id, the scene's hash and the manifest, every file and folder the run
+  wrote (:mod:`dem_taichi.io.run_directory`): a fresh run into a used ``--out`` is refused
+  unless ``--overwrite``, which deletes the files of that manifest and nothing else (refused
+  for a folder without ``run.json``, the current folder, the home folder and ``/``; an empty
+  ``--out`` is refused always);
+- ``run.lock`` while the run writes (PID, host, start time): a second run, resume or
+  ``--overwrite`` of the folder is refused naming the lock and its PID; a lock left by a dead
+  process is taken over with a one-line note; released on exit, on error and on SIGINT/SIGTERM;
 - with ``--paraview``: ``paraview/step_<step>.vtu`` at every checkpoint and at the end, listed
   in ``paraview/run.pvd`` (:mod:`dem_taichi.io.vtk_snapshots`).
+
+A run never writes through a symbolic link: a link in ``--out`` where a run writes is refused
+(one line), never followed nor replaced. ``snapshot`` refuses an existing ``--out`` file unless
+``--overwrite`` (then the file is replaced atomically, a link by a file, never its target).
 
 SIGINT (Ctrl-C) or SIGTERM stops the run at the next output step: a checkpoint is written, the
 history closed, and one line says how to resume; the exit code is 128 + the signal (130 for
@@ -31,7 +41,9 @@ SIGINT). The resumed run continues bit for bit.
 
 Errors (:mod:`tiv_model.command_line`, the project's one handler): a bad option, scene, file or
 directory is one line ``python -m dem_taichi: error: ...`` with exit code 2 (``--debug`` shows
-the traceback); a blow-up or a capacity the engine cannot grow, exit code 3. Checked before the
+the traceback); a blow-up or a capacity the engine cannot grow, exit code 3; a full disk
+(ENOSPC/EDQUOT), exit code 4 (the lock is released, the history synced up to the last output
+step). Checked before the
 engine starts: ``--steps`` >= 0, the run directory (above), and that the built-in compression
 has something to do (``[control] target_specific_volume`` below the gas's 1/initial_area_fraction).
 """
@@ -39,6 +51,7 @@ has something to do (``[control] target_specific_volume`` below the gas's 1/init
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from pathlib import Path
@@ -125,15 +138,31 @@ def _run(args: argparse.Namespace) -> int:
             "[particles] initial_area_fraction"
         )
     scene_toml = scene_to_toml(scene)
-    out = Path(args.out)
-    if args.resume:
-        run_dir, latest = resume_run(out, scene.scene.name, scene_toml, _checkpoint_scene)
-    else:
-        run_dir, latest = (
-            start_run(out, "run", scene.scene.name, scene_toml, args.overwrite, resume_hint=True),
-            None,
+    if not args.out.strip():
+        raise UsageError(
+            "--out is empty: give the run's folder (an empty --out would mean the current folder)"
         )
-    return _simulate(args, scene, run_dir, latest, cost)
+    if args.resume:
+        run_dir, latest = resume_run(args.out, scene.scene.name, scene_toml, _checkpoint_scene)
+    else:
+        run_dir = start_run(
+            args.out, "run", scene.scene.name, scene_toml, args.overwrite, resume_hint=True
+        )
+        latest = None
+    with run_dir:  # the manifest completed and the lock released, also on an error
+        return _simulate(args, scene, run_dir, latest, cost)
+
+
+def _replace_file(target: Path, write) -> Path:
+    """``write(temporary)`` a file beside ``target``, then rename it onto ``target``: a reader
+    never sees half a file, and an existing link at ``target`` is replaced, never followed."""
+    temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp{target.suffix}")
+    try:
+        write(temporary)
+        os.replace(temporary, target)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return target
 
 
 def _snapshot(args: argparse.Namespace) -> int:
@@ -150,22 +179,35 @@ def _snapshot(args: argparse.Namespace) -> int:
     target = Path(args.out)
     if target.suffix != ".vtu":
         raise UsageError(f"--out {target}: the snapshot is a VTK file: give a name ending .vtu")
+    if target.is_dir():
+        raise UsageError(f"--out {target} is a folder: give the .vtu file to write")
+    if (target.exists() or target.is_symlink()) and not args.overwrite:
+        raise UsageError(
+            f"--out {target} exists; add --overwrite to replace it, or choose another name"
+        )
     sim = Simulation.from_checkpoint(source, arch=args.arch)
     m = sim.measure()
     fields = {k: float(m[k]) for k in ("mean_stress", "deviatoric_stress", "specific_volume")}
-    path = write_simulation_snapshot(target, sim, stage=args.stage, fields=fields)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    path = _replace_file(
+        target,
+        lambda temporary: write_simulation_snapshot(
+            temporary, sim, stage=args.stage, fields=fields
+        ),
+    )
     if not args.quiet:
         print(f"{path}: {sim.n_bodies} bodies at step {sim.step} (open it in ParaView)")
     return 0
 
 
-def _paraview(sim, out: Path, stage: str) -> None:
-    """``--paraview``: the discs now as ``paraview/step_<step>.vtu``, listed in ``run.pvd``."""
+def _paraview(sim, run_dir, stage: str) -> None:
+    """``--paraview``: the discs now as ``paraview/step_<step>.vtu``, listed in ``run.pvd``
+    (both registered in the run's manifest before they are written)."""
     from dem_taichi.io.vtk_snapshots import read_pvd, write_pvd, write_simulation_snapshot
 
-    folder = out / "paraview"
-    path = write_simulation_snapshot(folder / f"step_{sim.step:010d}.vtu", sim, stage=stage)
-    series = folder / "run.pvd"
+    target = run_dir.output(f"paraview/step_{sim.step:010d}.vtu")
+    series = run_dir.output("paraview/run.pvd")
+    path = write_simulation_snapshot(target, sim, stage=stage)
     files = [(n, f) for n, f in read_pvd(series) if f != path] if series.exists() else []
     write_pvd(series, [*files, (f"step {sim.step}", path)])
 
@@ -191,7 +233,7 @@ def _simulate(
     if cost is not None and not args.quiet:  # once the engine is built: errors come first
         for line in cost_lines(cost):
             _say(line)
-    (out / "scene.toml").write_text(scene_to_toml(scene))
+    _replace_file(run_dir.output("scene.toml"), lambda t: t.write_text(scene_to_toml(scene)))
     attrs = provenance_attrs(
         scene_toml=scene.source_text or scene_to_toml(scene),
         arch=sim.arch,
@@ -212,7 +254,7 @@ def _simulate(
     resume = latest is not None
     with (
         HistoryWriter(
-            out / "history.nc",
+            run_dir.output("history.nc"),
             attrs=attrs,
             resume=resume,
             resume_after_step=sim.step if resume else None,
@@ -243,11 +285,10 @@ def _simulate(
                         history.append(sim.measure())
                         last_record = sim.step
                     if checkpoint_every and sim.step % checkpoint_every == 0:
-                        run_dir.add_checkpoint(
-                            sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
-                        )
+                        target = run_dir.output(checkpoint_path(checkpoints, sim.step))
+                        run_dir.add_checkpoint(sim.save_checkpoint(target))
                         if args.paraview:
-                            _paraview(sim, out, stage)
+                            _paraview(sim, run_dir, stage)
                 if bar is not None:
                     bar.close()
                 start = start + n_steps
@@ -258,10 +299,10 @@ def _simulate(
             return 3
         if stop.received is not None and last_record != sim.step:
             history.append(sim.measure())
-    path = sim.save_checkpoint(checkpoint_path(checkpoints, sim.step))
+    path = sim.save_checkpoint(run_dir.output(checkpoint_path(checkpoints, sim.step)))
     run_dir.add_checkpoint(path)
     if args.paraview:
-        _paraview(sim, out, stage if schedule else "gas")  # the stage the run ended in
+        _paraview(sim, run_dir, stage if schedule else "gas")  # the stage the run ended in
     if stop.received is not None:
         name = signal.Signals(stop.received).name
         print(
@@ -317,7 +358,8 @@ def _parser() -> ArgumentParser:
     run.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace the run already in --out (else a used --out is refused)",
+        help="replace the run already in --out: delete the files its run.json lists, nothing "
+        "else (else a used --out is refused)",
     )
     run.add_argument("--deterministic", action="store_true", help="bitwise reproducible (CPU)")
     run.add_argument(
@@ -349,6 +391,9 @@ def _parser() -> ArgumentParser:
     )
     snap.add_argument("state", help="checkpoint_<step>.npz, state_<label>.npz or path_*.npz")
     snap.add_argument("--out", required=True, help="the .vtu file to write")
+    snap.add_argument(
+        "--overwrite", action="store_true", help="replace --out if it exists (else refused)"
+    )
     snap.add_argument(
         "--stage",
         default="gas",
@@ -385,9 +430,13 @@ def main(argv: list[str] | None = None) -> int:
     # the common flags may come before the sub-command; `protocol` has its own parser
     first = next((i for i, a in enumerate(argv) if a not in ("--quiet", "--debug")), len(argv))
     if first < len(argv) and argv[first] == "protocol":
+        from dem_taichi.io.run_directory import release_all
         from dem_taichi.protocol import main as protocol_main
 
-        return protocol_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} protocol")
+        try:
+            return protocol_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} protocol")
+        finally:
+            release_all()  # the protocol's run folder: manifest completed, lock released
     if first < len(argv) and argv[first] == "sweep":
         from dem_taichi.sweep import main as sweep_main
 

@@ -1,21 +1,43 @@
 """Run directories: one run per directory, named by a run id and the hash of its scene.
 
 A run (``python -m dem_taichi run`` or ``protocol``, :func:`dem_taichi.protocol.run_protocol`)
-claims its output directory by writing ``run.json`` first (atomically):
+claims its output directory: it takes the directory's lock (:data:`RUN_LOCK`) and writes
+``run.json`` (atomically):
 
 - ``run_id``: a random 32-hex-digit id, also written into the history's global attributes;
 - ``scene_sha256``: SHA-256 of the full scene TOML (``scene_to_toml``: every key, defaults
   included, so the hash does not depend on how the scene file was written);
 - ``command``, ``scene_name``, ``created`` (UTC);
-- ``checkpoints``: the names of the checkpoints this run has written and kept (``run`` only).
+- ``checkpoints``: the names of the checkpoints this run has written and kept (``run`` only);
+- ``files`` and ``folders``: the manifest, every file and folder the run has written (paths
+  relative to the directory, ``/``-separated); ``preexisting``: the entries with a run's names
+  (:data:`RUN_FILE_PATTERNS`) that were there before the run, which it never lists.
 
-Rules (issue 11):
+Rules (issues 11 and 22):
 
 - a fresh run into a *used* directory (one holding ``run.json``, ``history.nc`` or
   ``checkpoints/``) is refused (:class:`RunDirectoryError`) unless ``overwrite``: then the files
-  a run writes (:data:`RUN_FILE_PATTERNS`) are deleted first, other files are kept;
-- a resume (:func:`resume_run`) is refused when the scene given differs from the run's (by
-  hash) or from the scene in the run's latest checkpoint;
+  of the old run's manifest are deleted (its folders too when they are left empty) and nothing
+  else. ``overwrite`` is refused for a directory without ``run.json`` (or with one from before
+  manifests), for the current folder, the home folder, ``/`` and any folder above them, and an
+  empty ``--out`` is refused always;
+- the lock ``run.lock`` (JSON: ``pid``, ``host``, ``started``, ``command``, ``token``) is held
+  while the run writes: a second run, a resume or an ``overwrite`` of a locked directory is
+  refused naming the lock and its PID. A lock whose PID is dead on this host is stale: it is
+  taken over with a one-line note (the dead run's manifest is completed first). A lock from
+  another host is never judged: delete it by hand when that run is gone. The lock is released
+  by :meth:`RunDirectory.close` (``with run:``), or when the :class:`RunDirectory` is garbage
+  collected or the interpreter exits;
+- a run never writes through a symbolic link: a link among the entries a run writes (or a
+  link as a folder between the directory and such an entry) is refused when the directory is
+  claimed and when an output is registered (:meth:`RunDirectory.output`). Refused, not
+  replaced: the link is the user's, and replacing it would delete it;
+- the manifest grows as outputs are registered (:meth:`RunDirectory.output`, before writing: a
+  crash leaves a manifest listing a file not written yet, never a file not listed) and when the
+  run closes: every entry with a run's name that was not in ``preexisting`` is added (this is
+  how the files of writers that do not register, e.g. the protocol's, are listed);
+- a resume (:func:`resume_run`, :func:`reopen_run`) is refused when the scene given differs
+  from the run's (by hash) or from the scene in the run's latest checkpoint;
 - checkpoint rotation (:meth:`RunDirectory.add_checkpoint`) deletes only checkpoints listed in
   the run's own record, never another file of the directory.
 
@@ -27,21 +49,30 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import errno
+import fnmatch
+import gc
 import hashlib
 import json
 import os
-import shutil
+import socket
+import stat
+import sys
 import tempfile
 import uuid
+import weakref
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 from .checkpoint import list_checkpoints
 
 __all__ = [
     "RUN_RECORD",
+    "RUN_LOCK",
     "RUN_FILE_PATTERNS",
     "RunDirectoryError",
+    "RunLockedError",
+    "RunLock",
     "RunRecord",
     "RunDirectory",
     "scene_sha256",
@@ -49,12 +80,15 @@ __all__ = [
     "resume_run",
     "reopen_run",
     "is_used",
+    "release_all",
 ]
 
 RUN_RECORD = "run.json"
+RUN_LOCK = "run.lock"
 RUN_FORMAT = "dem_taichi.run"
 RUN_FORMAT_VERSION = 1
-#: What a run writes in its directory (``--overwrite`` deletes these and nothing else).
+#: The names a run writes in its directory. Only entries with these names are ever listed in a
+#: run's manifest, and ``--overwrite`` deletes what the manifest lists (never by name).
 RUN_FILE_PATTERNS = (
     RUN_RECORD,
     "scene.toml",
@@ -78,14 +112,28 @@ class RunDirectoryError(ValueError):
     """A run directory that cannot be used as asked (used, other scene, nothing to resume)."""
 
 
+class RunLockedError(RunDirectoryError):
+    """The directory's lock is held by a running process (or one on another host)."""
+
+
 def scene_sha256(scene_toml: str) -> str:
     """SHA-256 (hex) of a scene's full TOML text (``dem_taichi.config.scene_to_toml``)."""
     return hashlib.sha256(scene_toml.encode("utf-8")).hexdigest()
 
 
+def _now() -> str:
+    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _note(line: str) -> None:
+    """A one-line note on stderr (a stale lock taken over, a folder kept)."""
+    print(f"note: {line}", file=sys.stderr, flush=True)
+
+
 @dataclass
 class RunRecord:
-    """The content of ``run.json`` (module docstring)."""
+    """The content of ``run.json`` (module docstring). ``files`` None: a record written before
+    manifests (its files are unknown: ``overwrite`` is refused)."""
 
     run_id: str
     command: str
@@ -93,6 +141,9 @@ class RunRecord:
     scene_sha256: str
     created: str
     checkpoints: list[str] = field(default_factory=list)
+    files: list[str] | None = None
+    folders: list[str] = field(default_factory=list)
+    preexisting: list[str] = field(default_factory=list)
     format: str = RUN_FORMAT
     format_version: int = RUN_FORMAT_VERSION
 
@@ -105,9 +156,11 @@ class RunRecord:
 
 def _read_record(directory: Path) -> RunRecord | None:
     path = directory / RUN_RECORD
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         return None
     try:
+        if path.is_symlink():
+            raise ValueError("it is a symbolic link")
         data = json.loads(path.read_text())
         if data.get("format") != RUN_FORMAT:
             raise ValueError(f"format is {data.get('format')!r}, not {RUN_FORMAT!r}")
@@ -115,33 +168,366 @@ def _read_record(directory: Path) -> RunRecord | None:
             raise ValueError(f"format version {data['format_version']} is newer than this code's")
         known = RunRecord.__dataclass_fields__
         return RunRecord(**{k: v for k, v in data.items() if k in known})
-    except (ValueError, TypeError, KeyError) as error:
+    except (ValueError, TypeError, KeyError, AttributeError) as error:
         raise RunDirectoryError(
-            f"{path} is not a readable run record ({error}); move it away or use --overwrite"
+            f"{path} is not a readable run record ({error}); move it away or choose a new --out"
         ) from error
 
 
 def is_used(directory: str | os.PathLike[str]) -> bool:
     """Whether ``directory`` holds a run (``run.json``, ``history.nc`` or ``checkpoints/``)."""
     folder = Path(directory)
-    return folder.is_dir() and any((folder / name).exists() for name in _USED_MARKERS)
+    return folder.is_dir() and any(
+        (folder / name).exists() or (folder / name).is_symlink() for name in _USED_MARKERS
+    )
 
 
-def _remove_run_files(folder: Path) -> None:
-    for pattern in RUN_FILE_PATTERNS:
-        for entry in folder.glob(pattern):
-            if entry.is_dir() and not entry.is_symlink():
-                shutil.rmtree(entry)
-            else:
-                entry.unlink(missing_ok=True)
+# ---- paths inside a run directory -------------------------------------------------------------
+
+
+def _is_run_name(name: str) -> bool:
+    """Whether a top-level entry has one of the names a run writes."""
+    return any(fnmatch.fnmatchcase(name, pattern) for pattern in RUN_FILE_PATTERNS)
+
+
+def _relative(folder: Path, path: str | os.PathLike[str]) -> str:
+    """``path`` (absolute, or relative to ``folder``) as a clean ``/``-separated relative path;
+    refused when it is not strictly inside ``folder``."""
+    given = Path(path)
+    if given.is_absolute():
+        try:
+            given = given.relative_to(folder.absolute())
+        except ValueError:
+            try:
+                given = given.relative_to(folder)
+            except ValueError:
+                raise RunDirectoryError(f"{path} is not inside the run folder {folder}") from None
+    elif given.parts[: len(folder.parts)] == folder.parts and folder.parts:
+        given = given.relative_to(folder)
+    rel = PurePosixPath(*given.parts)
+    if not rel.parts or rel.is_absolute() or any(p in ("..", ".") for p in rel.parts):
+        raise RunDirectoryError(f"{path} is not inside the run folder {folder}")
+    return str(rel)
+
+
+def _symlink_on_the_way(folder: Path, rel: str) -> Path | None:
+    """The first symbolic link among ``folder/rel`` and its folders below ``folder``, or None."""
+    here = folder
+    for part in PurePosixPath(rel).parts:
+        here = here / part
+        if here.is_symlink():
+            return here
+    return None
+
+
+def _refuse_link(link: Path) -> RunDirectoryError:
+    return RunDirectoryError(
+        f"{link} is a symbolic link (to {os.readlink(link)}); a run never writes through a "
+        "link: remove the link or choose a new --out"
+    )
+
+
+def _run_entries(folder: Path) -> tuple[set[str], set[str], list[Path]]:
+    """The files and folders with a run's names in ``folder`` (inside run-named folders, all
+    of them), and the symbolic links among them (never followed)."""
+    files: set[str] = set()
+    folders: set[str] = set()
+    links: list[Path] = []
+    if not folder.is_dir():
+        return files, folders, links
+    for entry in sorted(folder.iterdir()):
+        if not _is_run_name(entry.name):
+            continue
+        if entry.is_symlink():
+            links.append(entry)
+        elif entry.is_dir():
+            folders.add(entry.name)
+            for root, dirs, names in os.walk(entry, followlinks=False):
+                base = Path(root)
+                for name in [*dirs, *names]:
+                    path = base / name
+                    rel = str(PurePosixPath(*path.relative_to(folder).parts))
+                    if path.is_symlink():
+                        links.append(path)
+                    elif path.is_dir():
+                        folders.add(rel)
+                    else:
+                        files.add(rel)
+        else:
+            files.add(entry.name)
+    return files, folders, links
+
+
+def _check_no_links(folder: Path) -> None:
+    """Refuse a claim when an entry a run writes is a symbolic link (module docstring)."""
+    _, _, links = _run_entries(folder)
+    lock = folder / RUN_LOCK
+    if lock.is_symlink():
+        links.insert(0, lock)
+    if links:
+        raise _refuse_link(links[0])
+
+
+# ---- the lock -----------------------------------------------------------------------------
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this host (a zombie counts as alive)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError:
+        return False
+    return True
+
+
+def _read_lock(path: Path) -> dict | None:
+    """The content of a lock file; None when it vanished; {} when it is unreadable."""
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _describe_lock(data: dict) -> str:
+    return (
+        f"PID {data.get('pid', '?')} on host {data.get('host', '?')}, started "
+        f"{data.get('started', '?')} ({data.get('command', '?')})"
+    )
+
+
+def _write_new_lock(path: Path, data: dict) -> bool:
+    """Create the lock file with its content in one step (hard link of a temporary file);
+    False when a lock exists already."""
+    handle, temp = tempfile.mkstemp(dir=path.parent, prefix=f".{RUN_LOCK}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as stream:
+            stream.write(json.dumps(data) + "\n")
+        try:
+            os.link(temp, path)
+        except FileExistsError:
+            return False
+        except OSError as error:  # a file system without hard links
+            if error.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP):
+                raise
+            try:
+                os.rename(temp, path) if not path.exists() else None
+            except OSError:
+                return False
+            return path.exists() and _read_lock(path) == data
+        return True
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(temp)
+
+
+class RunLock:
+    """The lock of a run directory held by this process (module docstring)."""
+
+    def __init__(self, path: Path, data: dict) -> None:
+        self.path = path
+        self.data = data
+
+    @classmethod
+    def acquire(cls, folder: Path, command: str) -> RunLock:
+        """Take ``folder/run.lock``: refused (:class:`RunLockedError`) when a live process holds
+        it; a stale one (dead PID on this host) is taken over with a one-line note."""
+        path = folder / RUN_LOCK
+        if path.is_symlink():
+            raise _refuse_link(path)
+        data = {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "started": _now(),
+            "command": command,
+            "token": uuid.uuid4().hex,
+        }
+        for attempt in range(5):
+            if _write_new_lock(path, data):
+                return cls(path, data)
+            held = _read_lock(path)
+            if held is None:
+                continue  # released meanwhile: try again
+            if attempt == 0 and held.get("pid") == os.getpid() and _HELD:
+                gc.collect()  # a run of this process dropped in a reference cycle: closes it
+                continue
+            _take_over_if_stale(folder, path, held)
+        raise RunLockedError(f"{path}: could not take the lock (others keep taking it); try again")
+
+    def release(self) -> None:
+        """Delete the lock file if it is still this process's own."""
+        held = _read_lock(self.path)
+        if held and held.get("token") == self.data["token"]:
+            with contextlib.suppress(FileNotFoundError):
+                self.path.unlink()
+
+
+def _take_over_if_stale(folder: Path, path: Path, held: dict) -> None:
+    """Remove a stale lock (after completing its run's manifest), or refuse a live one."""
+    here = socket.gethostname()
+    pid = held.get("pid")
+    if not held or not isinstance(pid, int):
+        raise RunLockedError(
+            f"{path} is not a readable lock; if no run is writing into {folder}, delete the lock"
+        )
+    if held.get("host") != here:
+        raise RunLockedError(
+            f"{folder} is locked by {path}: {_describe_lock(held)}, another host, so it cannot "
+            "be checked from here; if that run is gone, delete the lock"
+        )
+    if _pid_alive(pid):
+        raise RunLockedError(
+            f"{folder} is in use: {path} is held by running {_describe_lock(held)}; wait for it "
+            f"to end, stop it (kill {pid}), or choose a new --out"
+        )
+    aside = path.with_name(f".{RUN_LOCK}.stale.{uuid.uuid4().hex[:8]}")
+    try:
+        os.rename(path, aside)
+    except FileNotFoundError:
+        return  # another process took it over first: try again
+    if _read_lock(aside) != held:  # raced: a fresh lock was put there meanwhile; put it back
+        with contextlib.suppress(OSError):
+            os.link(aside, path)
+        os.unlink(aside)
+        return
+    os.unlink(aside)
+    with contextlib.suppress(RunDirectoryError):
+        record = _read_record(folder)
+        if record is not None and record.files is not None:
+            _complete_manifest(folder, record)
+            _save_record(folder, record)
+    _note(f"took over the stale lock {path} of {_describe_lock(held)}: that process is gone")
+
+
+# ---- the manifest -------------------------------------------------------------------------
+
+
+def _complete_manifest(folder: Path, record: RunRecord) -> None:
+    """Add every entry with a run's name that was not there before the run (``preexisting``)."""
+    files, folders, _ = _run_entries(folder)
+    before = set(record.preexisting)
+    listed = set(record.files or [])
+    record.files = sorted(listed | (files - before))
+    record.folders = sorted(set(record.folders) | (folders - before))
+
+
+def _save_record(folder: Path, record: RunRecord) -> None:
+    """Write ``run.json`` atomically (temporary file, fsync, rename: never through a link)."""
+    text = json.dumps(asdict(record), indent=2) + "\n"
+    handle, temp = tempfile.mkstemp(dir=folder, prefix=f".{RUN_RECORD}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as stream:
+            stream.write(text)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.chmod(temp, 0o644)
+        os.replace(temp, folder / RUN_RECORD)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temp)
+        raise
+
+
+def _checked_manifest(folder: Path, record: RunRecord) -> tuple[list[str], list[str]]:
+    """The manifest's files and folders, each checked to lie inside ``folder`` (refused else:
+    a record that names other paths is not deleted from)."""
+    clean = []
+    for entry in [*(record.files or []), *record.folders]:
+        try:
+            rel = _relative(folder, entry)
+        except RunDirectoryError:
+            rel = None
+        if rel is None or rel != entry:
+            raise RunDirectoryError(
+                f"{folder / RUN_RECORD} lists {entry!r}, not a path inside {folder}; --overwrite "
+                "deletes nothing on such a record: delete the old run's files by hand or choose "
+                "a new --out"
+            )
+        clean.append(rel)
+    return list(record.files or []), list(record.folders)
+
+
+def _delete_manifest(folder: Path, record: RunRecord) -> None:
+    """Delete what the run's manifest lists: its regular files, then its folders left empty
+    (deepest first). A listed path behind a symbolic link, or that is now a link or a folder, is
+    kept; so is a listed folder holding files the run did not write (one note)."""
+    files, folders = _checked_manifest(folder, record)
+    for rel in files:
+        path = folder / rel
+        if _symlink_on_the_way(folder, rel) is not None:
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            if stat.S_ISREG(path.lstat().st_mode):
+                path.unlink()
+    kept = []
+    for rel in sorted(folders, key=lambda r: len(PurePosixPath(r).parts), reverse=True):
+        path = folder / rel
+        if _symlink_on_the_way(folder, rel) is not None or not path.is_dir():
+            continue
+        try:
+            path.rmdir()
+        except OSError as error:
+            if error.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                raise
+            kept.append(rel)
+    if kept:
+        _note(f"kept {', '.join(kept)} in {folder}: they hold files the old run did not write")
+
+
+# ---- the claimed directory ----------------------------------------------------------------
+
+_HELD: weakref.WeakSet = weakref.WeakSet()
+
+
+def _finish(folder: Path, record: RunRecord, lock: RunLock) -> None:
+    """Close a run: complete its manifest and release its lock (also the finalizer)."""
+    try:
+        if folder.is_dir() and (folder / RUN_RECORD).is_file() and record.files is not None:
+            _complete_manifest(folder, record)
+            _save_record(folder, record)
+    finally:
+        lock.release()
 
 
 class RunDirectory:
-    """A claimed run directory: its path and record, with per-run checkpoint rotation."""
+    """A claimed run directory: its path, record and lock, with per-run checkpoint rotation.
 
-    def __init__(self, path: Path, record: RunRecord) -> None:
+    Use it as a context manager (``with start_run(...) as run:``) or call :meth:`close`; a
+    directory never closed is closed when garbage collected or at interpreter exit.
+    """
+
+    def __init__(self, path: Path, record: RunRecord, lock: RunLock | None = None) -> None:
         self.path = path
         self.record = record
+        self.lock = lock
+        self._finalizer = (
+            weakref.finalize(self, _finish, path, record, lock) if lock is not None else None
+        )
+        if lock is not None:
+            _HELD.add(self)
+
+    def __enter__(self) -> RunDirectory:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Complete the manifest and release the lock (idempotent)."""
+        if self._finalizer is not None:
+            self._finalizer()
+
+    @property
+    def closed(self) -> bool:
+        return self._finalizer is None or not self._finalizer.alive
 
     @property
     def run_id(self) -> str:
@@ -153,19 +539,25 @@ class RunDirectory:
 
     def save(self) -> None:
         """Write ``run.json`` atomically (temporary file, fsync, rename)."""
-        text = json.dumps(asdict(self.record), indent=2) + "\n"
-        handle, temp = tempfile.mkstemp(dir=self.path, prefix=f".{RUN_RECORD}.", suffix=".tmp")
-        try:
-            with os.fdopen(handle, "w") as stream:
-                stream.write(text)
-                stream.flush()
-                os.fsync(stream.fileno())
-            os.chmod(temp, 0o644)
-            os.replace(temp, self.path / RUN_RECORD)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(temp)
-            raise
+        _save_record(self.path, self.record)
+
+    def output(self, path: str | os.PathLike[str]) -> Path:
+        """Register an output before writing it: ``path`` (relative to the run folder, or
+        absolute inside it) is listed in the manifest with the folders made for it. Refused
+        when it lies outside the folder or a symbolic link is on its way. Returns its path."""
+        rel = _relative(self.path, path)
+        link = _symlink_on_the_way(self.path, rel)
+        if link is not None:
+            raise _refuse_link(link)
+        parts = PurePosixPath(rel).parts
+        new_folders = {str(PurePosixPath(*parts[:i])) for i in range(1, len(parts))}
+        new_folders -= set(self.record.preexisting)
+        files = set(self.record.files or [])
+        if rel not in files or not new_folders <= set(self.record.folders):
+            self.record.files = sorted(files | {rel})
+            self.record.folders = sorted(set(self.record.folders) | new_folders)
+            self.save()
+        return self.path / rel
 
     def latest_checkpoint(self) -> Path | None:
         """The run's own checkpoint of the greatest step that exists, or None."""
@@ -186,12 +578,87 @@ class RunDirectory:
         names.sort()
         removed = [self.checkpoint_dir / n for n in names[:-keep]]
         self.record.checkpoints = names[-keep:]
+        if self.record.files is not None:
+            gone = {f"checkpoints/{p.name}" for p in removed}
+            listed = (set(self.record.files) | {f"checkpoints/{name}"}) - gone
+            self.record.files = sorted(listed)
+            if "checkpoints" not in self.record.preexisting:
+                self.record.folders = sorted(set(self.record.folders) | {"checkpoints"})
         self.save()  # the record first: a crash now leaves extra files, never a dangling list
         for entry in removed:
             entry.unlink(missing_ok=True)
         for entry in self.checkpoint_dir.glob(".checkpoint_*.tmp"):
             entry.unlink(missing_ok=True)  # left by a crashed save of this run
         return removed
+
+
+def release_all() -> None:
+    """Close every run directory this process still holds (a command line's last word)."""
+    for run in list(_HELD):
+        run.close()
+
+
+# ---- claiming ---------------------------------------------------------------------------
+
+
+def _checked_out(directory: str | os.PathLike[str]) -> Path:
+    """The ``--out`` folder as a path; refused when empty or a file."""
+    if isinstance(directory, str) and not directory.strip():
+        raise RunDirectoryError(
+            "--out is empty: give the run's folder (an empty --out would mean the current folder)"
+        )
+    folder = Path(directory)
+    if (folder.exists() or folder.is_symlink()) and not folder.is_dir():
+        raise RunDirectoryError(f"--out {folder} is a file, not a directory; choose a directory")
+    return folder
+
+
+def _refuse_overwrite_of_a_top_folder(folder: Path) -> None:
+    """``--overwrite`` never works in the current folder, the home folder, ``/`` or above."""
+    target = folder.resolve()
+    for name, top in (("the current folder", Path.cwd()), ("your home folder", Path.home())):
+        top = top.resolve()
+        if target == top or target in top.parents:
+            what = name if target == top else f"a folder above {name}"
+            raise RunDirectoryError(
+                f"--out {folder} is {what} ({target}); --overwrite is refused there: give the "
+                "run's own folder"
+            )
+    if target == Path(target.anchor):
+        raise RunDirectoryError(f"--out {folder} is the root folder; --overwrite is refused there")
+
+
+def _refuse_used(folder: Path, resume_hint: bool) -> RunDirectoryError:
+    """The refusal of a used directory without ``overwrite``."""
+    try:
+        previous = _read_record(folder)
+        what = previous.describe() if previous else "the files of an earlier run"
+    except RunDirectoryError:
+        what = "an unreadable run record"
+    options = "add --overwrite to replace it"
+    if resume_hint:
+        options += ", or --resume to continue it"
+    return RunDirectoryError(
+        f"--out {folder} already holds {what}; a run needs a directory of its own: "
+        f"choose a new --out, {options}"
+    )
+
+
+def _old_record_to_replace(folder: Path) -> RunRecord:
+    """The record of the run ``overwrite`` replaces; refused when there is none to go by."""
+    record = _read_record(folder)
+    if record is None:
+        raise RunDirectoryError(
+            f"--overwrite: {folder} holds run files but no {RUN_RECORD}, so what they belong to "
+            "is unknown and nothing is deleted; move them away or choose a new --out "
+            "(--resume continues a run from its checkpoints)"
+        )
+    if record.files is None:
+        raise RunDirectoryError(
+            f"--overwrite: {folder / RUN_RECORD} is from before runs listed their files, so "
+            "nothing is deleted; delete the old run's files by hand or choose a new --out"
+        )
+    return record
 
 
 def start_run(
@@ -202,41 +669,59 @@ def start_run(
     overwrite: bool = False,
     resume_hint: bool = False,
 ) -> RunDirectory:
-    """Claim ``directory`` for a fresh run and write its ``run.json``.
+    """Claim ``directory`` for a fresh run: take its lock and write its ``run.json``.
 
     A used directory (:func:`is_used`) is refused unless ``overwrite``, which first deletes the
-    files a run writes (:data:`RUN_FILE_PATTERNS`). ``resume_hint``: the refusal also names
-    ``--resume`` (for the ``run`` command, which can continue a run).
+    files listed in the old run's manifest (module docstring). ``resume_hint``: the refusal
+    also names ``--resume`` (for the ``run`` command, which can continue a run).
     """
-    folder = Path(directory)
-    if folder.exists() and not folder.is_dir():
-        raise RunDirectoryError(f"--out {folder} is a file, not a directory; choose a directory")
-    if is_used(folder):
-        if not overwrite:
-            try:
-                previous = _read_record(folder)
-                what = previous.describe() if previous else "the files of an earlier run"
-            except RunDirectoryError:
-                what = "an unreadable run record"
-            options = "add --overwrite to replace it"
-            if resume_hint:
-                options += ", or --resume to continue it"
-            raise RunDirectoryError(
-                f"--out {folder} already holds {what}; a run needs a directory of its own: "
-                f"choose a new --out, {options}"
-            )
-        _remove_run_files(folder)
+    folder = _checked_out(directory)
+    if overwrite:
+        _refuse_overwrite_of_a_top_folder(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    record = RunRecord(
-        run_id=uuid.uuid4().hex,
-        command=command,
-        scene_name=scene_name,
-        scene_sha256=scene_sha256(scene_toml),
-        created=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-    )
-    run = RunDirectory(folder, record)
-    run.save()
+    lock = RunLock.acquire(folder, command)
+    try:
+        _check_no_links(folder)
+        if is_used(folder):
+            if not overwrite:
+                raise _refuse_used(folder, resume_hint)
+            _delete_manifest(folder, _old_record_to_replace(folder))
+        files, folders, _ = _run_entries(folder)
+        record = RunRecord(
+            run_id=uuid.uuid4().hex,
+            command=command,
+            scene_name=scene_name,
+            scene_sha256=scene_sha256(scene_toml),
+            created=_now(),
+            files=[RUN_RECORD],
+            preexisting=sorted(files | folders),
+        )
+        run = RunDirectory(folder, record, lock)
+        run.save()
+    except BaseException:
+        lock.release()
+        raise
     return run
+
+
+def _listing(folder: Path, record: RunRecord) -> RunRecord:
+    """A record from before manifests, listing from now on: what is there now stays unlisted."""
+    if record.files is None:
+        files, folders, _ = _run_entries(folder)
+        record.files = [RUN_RECORD]
+        record.preexisting = sorted((files | folders) - {RUN_RECORD})
+    return record
+
+
+def _claim_existing(folder: Path, command: str) -> RunLock:
+    """Lock an existing run directory for a resume and refuse links among its outputs."""
+    lock = RunLock.acquire(folder, command)
+    try:
+        _check_no_links(folder)
+    except BaseException:
+        lock.release()
+        raise
+    return lock
 
 
 def resume_run(
@@ -250,11 +735,28 @@ def resume_run(
     ``checkpoint_scene_toml(path)`` returns the full scene TOML stored in a checkpoint (the
     caller reads checkpoints; this module does not know the engine). Refused
     (:class:`RunDirectoryError`) when there is no run or no checkpoint, when the scene given
-    differs from the run's, or when the checkpoint's scene differs from the run's.
+    differs from the run's, or when the checkpoint's scene differs from the run's. The run's
+    lock is taken (refused when held).
     """
-    folder = Path(directory)
+    folder = _checked_out(directory)
     given = scene_sha256(scene_toml)
-    record = _read_record(folder) if folder.is_dir() else None
+    if not folder.is_dir():
+        raise RunDirectoryError(
+            f"--resume: {folder} holds no run to continue (no such folder); start a fresh run "
+            "without --resume"
+        )
+    lock = _claim_existing(folder, "run")
+    try:
+        run, latest = _resumed(folder, scene_name, given, checkpoint_scene_toml, lock)
+    except BaseException:
+        lock.release()
+        raise
+    return run, latest
+
+
+def _resumed(folder: Path, scene_name: str, given: str, checkpoint_scene_toml, lock: RunLock):
+    """The body of :func:`resume_run` once the lock is held."""
+    record = _read_record(folder)
     if record is None:
         found = list_checkpoints(folder / "checkpoints")
         if not found:
@@ -271,19 +773,21 @@ def resume_run(
             created="unknown (adopted on resume)",
             checkpoints=[p.name for p in found],
         )
-    run = RunDirectory(folder, record)
+    record = _listing(folder, record)
     if given != record.scene_sha256:
         raise RunDirectoryError(
             f"--resume: the scene given ({scene_name!r}, sha256 {given[:12]}) is not the scene of "
             f"{record.describe()} in {folder} (sha256 {record.scene_sha256[:12]}); give the "
             f"run's own scene ({folder / 'scene.toml'}) or start a fresh run in a new --out"
         )
-    latest = run.latest_checkpoint()
-    if latest is None:
+    own = set(record.checkpoints)
+    found = [p for p in list_checkpoints(folder / "checkpoints") if p.name in own]
+    if not found:
         raise RunDirectoryError(
             f"--resume: {record.describe()} in {folder} has no checkpoint yet; start it again "
             "with --overwrite"
         )
+    latest = found[-1]
     stored = scene_sha256(checkpoint_scene_toml(latest))
     if stored != record.scene_sha256:
         raise RunDirectoryError(
@@ -291,6 +795,7 @@ def resume_run(
             f"{record.describe()} (sha256 {record.scene_sha256[:12]}); the directory mixes runs: "
             "start a fresh run in a new --out"
         )
+    run = RunDirectory(folder, record, lock)
     run.save()  # an adopted directory gets its record now
     return run, latest
 
@@ -300,8 +805,9 @@ def reopen_run(
 ) -> RunDirectory:
     """The run of ``directory`` for a resume of ``command`` (``protocol``), checked against the
     scene given: refused when there is no run record, when it is another command's run, or
-    when the scene differs from the run's (by hash)."""
-    folder = Path(directory)
+    when the scene differs from the run's (by hash). The run's lock is taken (refused when
+    held)."""
+    folder = _checked_out(directory)
     record = _read_record(folder) if folder.is_dir() else None
     if record is None:
         raise RunDirectoryError(
@@ -320,4 +826,12 @@ def reopen_run(
             f"{record.describe()} in {folder} (sha256 {record.scene_sha256[:12]}); give the "
             "run's own scene or start a fresh run in a new --out"
         )
-    return RunDirectory(folder, record)
+    lock = _claim_existing(folder, command)
+    try:
+        record = _listing(folder, _read_record(folder) or record)
+        run = RunDirectory(folder, record, lock)
+        run.save()
+    except BaseException:
+        lock.release()
+        raise
+    return run

@@ -63,11 +63,12 @@ def test_a_used_directory_is_refused(tmp_path, marker):
 
 
 def test_overwrite_removes_the_old_run_and_keeps_other_files(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
     old = start_run(tmp_path, "run", "smoke", SMOKE)
     old.add_checkpoint(fake_checkpoint(old.checkpoint_dir, 9000))
     (tmp_path / "history.nc").write_text("old")
     (tmp_path / "configuration_A.nc").write_text("old")
-    (tmp_path / "notes.txt").write_text("mine")
+    old.close()  # lists what the run wrote without registering it, releases the lock
     with pytest.raises(RunDirectoryError, match="or --resume to continue it"):
         start_run(tmp_path, "run", "smoke", SMOKE, resume_hint=True)
     new = start_run(tmp_path, "run", "smoke", SMOKE, overwrite=True)
@@ -95,6 +96,7 @@ def test_rotation_touches_only_the_runs_own_checkpoints(tmp_path):
 def test_resume_refuses_another_scene(tmp_path):
     run = start_run(tmp_path, "run", "smoke", SMOKE)
     run.add_checkpoint(fake_checkpoint(run.checkpoint_dir, 1000))
+    run.close()
     with pytest.raises(RunDirectoryError, match="is not the scene of run"):
         resume_run(tmp_path, "other", OTHER, scene_of)
     again, latest = resume_run(tmp_path, "smoke", SMOKE, scene_of)
@@ -104,6 +106,7 @@ def test_resume_refuses_another_scene(tmp_path):
 def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path):
     run = start_run(tmp_path, "run", "smoke", SMOKE)
     run.add_checkpoint(fake_checkpoint(run.checkpoint_dir, 1000, scene_toml=OTHER))
+    run.close()
     with pytest.raises(RunDirectoryError, match="holds another scene"):
         resume_run(tmp_path, "smoke", SMOKE, scene_of)
 
@@ -111,7 +114,7 @@ def test_resume_refuses_a_checkpoint_of_another_scene(tmp_path):
 def test_resume_of_nothing_is_refused(tmp_path):
     with pytest.raises(RunDirectoryError, match="no run to continue"):
         resume_run(tmp_path / "empty", "smoke", SMOKE, scene_of)
-    start_run(tmp_path / "new", "run", "smoke", SMOKE)
+    start_run(tmp_path / "new", "run", "smoke", SMOKE).close()
     with pytest.raises(RunDirectoryError, match="has no checkpoint yet"):
         resume_run(tmp_path / "new", "smoke", SMOKE, scene_of)
 
