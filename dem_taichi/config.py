@@ -78,7 +78,7 @@ from dem_taichi.scene_sections import (
     SceneInfo,
     VanDerWaals,
 )
-from dem_taichi.sections import SceneError, SceneSection
+from dem_taichi.sections import SceneError, SceneSection, read_text_file
 
 __all__ = [
     "SceneError",
@@ -93,6 +93,7 @@ __all__ = [
     "register_section",
     "builtin_scene_path",
     "contact_duration",
+    "tangential_stiffness_limit",
     "gamma_from_restitution",
     "restitution_from_gamma",
 ]
@@ -331,8 +332,60 @@ def scene_from_dict(data: dict, source_text: str = "") -> Scene:
     return scene
 
 
+#: The keys the time step and the contacts' damping are computed from, named when one of those
+#: derived quantities is not a finite positive number.
+_TIME_STEP_KEYS = (
+    "[contact] k_n, e_n | gamma_n, rolling_stiffness; [particles] disc_mass, diameter, "
+    "spacing, n_spheres; [integration] dt_safety"
+)
+
+
+def _check_derived(scene: Scene) -> None:
+    """Refuse a scene whose time step or contact duration is not a finite positive number
+    (keys that are each in range but together overflow or vanish), naming the keys they come
+    from rather than the first formula that fails."""
+    try:
+        values = {"contact duration": scene.contact_duration, "time step": scene.time_step}
+    except (OverflowError, ZeroDivisionError) as exc:
+        raise SceneError(
+            f"the contact duration and time step of this scene cannot be computed ({exc}): "
+            f"check {_TIME_STEP_KEYS}"
+        ) from None
+    for what, value in values.items():
+        if not (math.isfinite(value) and value > 0.0):
+            raise SceneError(
+                f"the {what} of this scene is {value!r}, not a finite positive number: "
+                f"check {_TIME_STEP_KEYS}"
+            )
+
+
+def tangential_stiffness_limit(dt_safety: float) -> float:
+    """Largest k_t/k_n whose tangential spring the leapfrog step resolves at ``dt_safety``.
+
+    Two free discs (I = m r²/2) oscillate tangentially at ω_t = sqrt(3 k_t/k_n) ω_n, and Δt is
+    set from the normal contact alone, ω_n Δt = π dt_safety; leapfrog is stable for ω Δt < 2, so
+    k_t/k_n < (2 / (π dt_safety))² / 3: 6.0 at dt_safety 0.15, 0.84 at 0.4. (Elastic discs have
+    k_t/k_n = 2(1−ν)/(2−ν), 2/3 to 1 for ν from 1/2 to 0; the scenes use 0.2.)"""
+    return (2.0 / (math.pi * dt_safety)) ** 2 / 3.0
+
+
+def _check_tangential_stiffness(scene: Scene) -> None:
+    """Refuse a tangential spring too stiff for the time step (:func:`tangential_stiffness_limit`)."""
+    c, dt_safety = scene.contact, scene.integration.dt_safety
+    limit = tangential_stiffness_limit(dt_safety)
+    if c.k_t > limit * c.k_n:
+        raise SceneError(
+            f"[contact] k_t = {c.k_t!r} is {c.k_t / c.k_n:.3g} × k_n = {c.k_n!r}: allowed "
+            f"k_t/k_n <= {limit:.3g} at [integration] dt_safety = {dt_safety} (Δt follows k_n "
+            "alone; a stiffer tangential spring is unstable; elastic discs have k_t/k_n = "
+            "2(1-ν)/(2-ν), 2/3 to 1)"
+        )
+
+
 def _check_scene(scene: Scene) -> None:
     scene.contact_duration  # noqa: B018 - raises on overdamped γ_n
+    _check_derived(scene)
+    _check_tangential_stiffness(scene)
     try:
         scene.gamma_n  # noqa: B018 - solves the discrete restitution model once (cached)
     except ValueError as exc:
@@ -395,7 +448,7 @@ def load_scene(path_or_name: str | Path) -> Scene:
         )
     if not path.is_file():
         raise SceneError(f"scene {str(path)!r} is a directory; give a scene TOML file")
-    text = path.read_text()
+    text = read_text_file(path, "scene file")
     scene = scene_from_toml(text)
     if "particles" not in tomllib.loads(text):
         what = "is empty" if not text.strip() else "has no [particles] section"
@@ -418,22 +471,44 @@ def scene_with_overrides(scene: Scene, overrides: list[str] | tuple[str, ...]) -
     data = tomllib.loads(scene_to_toml(scene))
     values: dict[str, Any] = {}
     for item in overrides:
-        name, sep, text = item.partition("=")
-        section, dot, key = name.strip().partition(".")
-        if not sep or not dot or not section or not key.strip():
-            raise SceneError(
-                f"--set {item!r}: expected section.key=value (e.g. contact.mu=0.2 or scene.seed=4)"
-            )
-        try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = text.strip()  # a bare word, e.g. particles.rod_model=bonded
-        values[f"{section}.{key.strip()}"] = value
+        key, value = _parse_override(item)
+        values[key] = value
     set_keys(data, values)
     rigid = data.get("particles", {}).get("rod_model", "rigid") != "bonded"
     if rigid and not any(item.strip().startswith("bonds.") for item in overrides):
         data.pop("bonds", None)  # a bonded scene made rigid by --set: its [bonds] no longer apply
     return scene_from_dict(data, source_text="")
+
+
+def _parse_override(item: str) -> tuple[str, Any]:
+    """``"section.key=value"`` → ``("section.key", value)``: the value is one TOML value (a
+    number, boolean, quoted string or array), or else a bare word taken as a string. A line
+    break or other control character anywhere is refused (TOML would read what follows it as
+    further keys, which were then dropped without a word)."""
+    if not isinstance(item, str):
+        raise SceneError(f"--set {item!r}: expected a string section.key=value")
+    bad = next((c for c in item if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        raise SceneError(
+            f"--set {item!r} contains the control character {bad!r} (a line break?): give "
+            "one section.key=value per --set, on one line"
+        )
+    name, sep, text = item.partition("=")
+    section, dot, key = name.strip().partition(".")
+    if not sep or not dot or not section or not key.strip():
+        raise SceneError(
+            f"--set {item!r}: expected section.key=value (e.g. contact.mu=0.2 or scene.seed=4)"
+        )
+    try:
+        parsed = tomllib.loads(f"v = {text.strip()}")
+    except tomllib.TOMLDecodeError:
+        parsed = {"v": text.strip()}  # a bare word, e.g. particles.rod_model=bonded
+    if set(parsed) != {"v"}:
+        raise SceneError(
+            f"--set {item!r}: the value must be one TOML value (a number, true/false, a quoted "
+            "string or an array)"
+        )
+    return f"{section}.{key.strip()}", parsed["v"]
 
 
 def _toml_value(value: Any) -> str:

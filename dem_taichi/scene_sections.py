@@ -46,7 +46,15 @@ class Particles(SceneSection):
     diameter: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
     spacing: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
     disc_mass: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
-    initial_area_fraction: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    initial_area_fraction: float = field(
+        default=0.15,
+        metadata=_range(
+            1.0e-3,
+            0.5,
+            doc="Δt / t_c; from 1e-3 (the discrete restitution model's set-up at load costs "
+            "∝ 1/dt_safety: 1 s at 1e-3, hours below 1e-6)",
+        ),
+    )
     initial_speed: float = field(default=0.01, metadata=_range(0.0, None))
     rod_model: str = field(
         default="rigid",
@@ -182,7 +190,15 @@ class VanDerWaals(SceneSection):
 @dataclass(frozen=True)
 class Integration(SceneSection):
     SECTION = "integration"
-    dt_safety: float = field(default=0.15, metadata=_range(0.0, 0.5, lo_open=True))
+    dt_safety: float = field(
+        default=0.15,
+        metadata=_range(
+            1.0e-3,
+            0.5,
+            doc="Δt / t_c; from 1e-3 (the discrete restitution model's set-up at load costs "
+            "∝ 1/dt_safety: 1 s at 1e-3, hours below 1e-6)",
+        ),
+    )
     local_damping: float = field(default=0.2, metadata=_range(0.0, 1.0, hi_open=True))
     steps_per_call: int = field(default=100, metadata=_range(1, 1_000_000))
     skin: float = field(default=0.3, metadata=_range(0.0, None, lo_open=True))

@@ -11,12 +11,52 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
-__all__ = ["SceneError", "SceneSection", "field_range", "field_choices"]
+__all__ = [
+    "MAX_MAGNITUDE",
+    "MIN_MAGNITUDE",
+    "SceneError",
+    "SceneSection",
+    "field_range",
+    "field_choices",
+    "read_text_file",
+]
+
+#: Largest magnitude of any number of a scene, and smallest of a non-zero one. Scenes are in DEM
+#: units (disc diameter d = 1, disc mass m = 1): no key needs more, and a product of three keys
+#: (a force k_n·δ over a mass, an energy) then stays inside single precision (3.4e38, the
+#: engine's ``precision = "f32"``) instead of overflowing where it is used, far from the key.
+MAX_MAGNITUDE = 1.0e12
+MIN_MAGNITUDE = 1.0e-12
 
 
 class SceneError(ValueError):
     """An invalid scene: the message names the offending key and what is allowed."""
+
+
+def read_text_file(path: str | Path, what: str, error: type[Exception] = SceneError) -> str:
+    """The text of the UTF-8 file ``path``; ``error`` naming ``what`` (e.g. "scene file"), the
+    file and the first bad byte when it is not UTF-8 text (a binary file, another encoding)."""
+    data = Path(path).read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{what} {str(path)!r} is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+            f"{exc.start}): save it as UTF-8"
+        ) from None
+
+
+def _check_magnitude(key: str, value: float | int) -> None:
+    """Refuse a number beyond the scale of a scene (:data:`MAX_MAGNITUDE`)."""
+    size = abs(value)
+    if size > MAX_MAGNITUDE or 0 < size < MIN_MAGNITUDE:
+        raise SceneError(
+            f"{key} = {value!r} is out of range: allowed magnitudes {MIN_MAGNITUDE:g} to "
+            f"{MAX_MAGNITUDE:g} (or 0) for every number of a scene (DEM units, d = m = 1; "
+            "products of keys must stay finite in single precision)"
+        )
 
 
 def field_range(lo=None, hi=None, lo_open=False, hi_open=False, doc=""):
@@ -89,19 +129,26 @@ class SceneSection:
                     object.__setattr__(self, f.name, value)
                 if not isinstance(value, str):
                     raise SceneError(f"{key} = {value!r}: must be a string")
-            if "range" in f.metadata:
-                lo, hi, lo_open, hi_open = f.metadata["range"]
-                bad = (lo is not None and (value < lo or (lo_open and value == lo))) or (
-                    hi is not None and (value > hi or (hi_open and value == hi))
-                )
-                if bad:
-                    raise SceneError(
-                        f"{key} = {value!r} is out of range: allowed {_describe_range(f.metadata)}"
-                    )
+            if kind in ("int", "float"):
+                self._check_range(key, value, f.metadata)
+                _check_magnitude(key, value)
             if "choices" in f.metadata and value not in f.metadata["choices"]:
                 allowed = " | ".join(str(c) for c in f.metadata["choices"])
                 raise SceneError(f"{key} = {value!r}: allowed values are {allowed}")
         self.check()
+
+    @staticmethod
+    def _check_range(key: str, value: float | int, metadata) -> None:
+        """Refuse ``value`` outside the field's ``range`` metadata (:func:`field_range`)."""
+        if "range" in metadata:
+            lo, hi, lo_open, hi_open = metadata["range"]
+            bad = (lo is not None and (value < lo or (lo_open and value == lo))) or (
+                hi is not None and (value > hi or (hi_open and value == hi))
+            )
+            if bad:
+                raise SceneError(
+                    f"{key} = {value!r} is out of range: allowed {_describe_range(metadata)}"
+                )
 
     def check(self) -> None:
         """Cross-field checks of the section (override)."""

@@ -27,7 +27,13 @@ then ``[sweep.set]``, then the member's keys, then the grid point's.
 Every member's full scene is built and validated at load: an unknown key or an invalid value
 fails with :class:`SweepError` naming the member, the key as written in the sweep file and what
 the scene allows, before anything runs. A member's name is also the name of its run directory,
-``DIR/members/<name>``: names are unique and made of ``A-Z a-z 0-9 . _ -``.
+``DIR/members/<name>``: names (given or made from the keys) are unique, 1 to
+:data:`MAX_NAME_LENGTH` characters of ``A-Z a-z 0-9 - _ . = +``, and neither ``.`` nor ``..``
+(:func:`check_member_name`), so that no member's folder lies outside ``DIR/members``.
+
+A sweep has at most :data:`MAX_MEMBERS` members (the grid's points times the listed members):
+a larger one is refused with its size before any member is built (``max_members`` of
+:func:`sweep_from_toml`, ``--max-members`` of the command line, raise the limit).
 """
 
 from __future__ import annotations
@@ -49,13 +55,29 @@ from dem_taichi.config import (
     scene_to_toml,
 )
 from dem_taichi.presets import set_keys
+from dem_taichi.sections import read_text_file
 
-__all__ = ["SweepError", "Member", "SweepSpec", "load_sweep", "sweep_from_toml"]
+__all__ = [
+    "MAX_MEMBERS",
+    "MAX_NAME_LENGTH",
+    "SweepError",
+    "Member",
+    "SweepSpec",
+    "check_member_name",
+    "load_sweep",
+    "sweep_from_toml",
+]
 
 _SWEEP_KEYS = ("name", "scene", "arch", "precision", "workers", "set", "grid", "members")
 _ARCHES = ("cpu", "gpu")
 _PRECISIONS = ("f64", "f32")
-_NAME = re.compile(r"^[A-Za-z0-9._-]+$")
+_NAME = re.compile(r"^[A-Za-z0-9_.=+-]+$")
+#: Longest member name (the name of its run directory; file systems allow 255 bytes).
+MAX_NAME_LENGTH = 120
+#: Most members a sweep may have unless ``max_members`` says otherwise: each member is a whole
+#: protocol run (minutes to hours) and its scene is built and validated at load, so a grid of
+#: 10⁸ points is a typo, not a plan.
+MAX_MEMBERS = 10_000
 
 
 class SweepError(SceneError):
@@ -107,6 +129,22 @@ class SweepSpec:
         for m in self.members:
             keys.update(dict.fromkeys(m.parameters))
         return tuple(keys)
+
+
+def check_member_name(name: Any, where: str) -> str:
+    """``name`` if it is a safe member name (module docstring), else :class:`SweepError`
+    naming ``where`` and the rule: the name becomes the folder ``DIR/members/<name>``, which a
+    re-run may delete, so it must not leave ``DIR/members``."""
+    rule = (
+        f"allowed: 1 to {MAX_NAME_LENGTH} characters of A-Z a-z 0-9 - _ . = + (no path "
+        "separator), not '.' or '..'"
+    )
+    if not isinstance(name, str) or not name:
+        raise SweepError(f"{where} name = {name!r}: {rule}")
+    if len(name) > MAX_NAME_LENGTH or not _NAME.match(name) or name in (".", ".."):
+        shown = name if len(name) <= 60 else name[:57] + "..."
+        raise SweepError(f"{where} name = {shown!r}: {rule}")
+    return name
 
 
 def _flatten(table: dict, where: str, prefix: str = "") -> dict[str, Any]:
@@ -169,7 +207,7 @@ def _base_scene_dict(scene: Any, folder: Path) -> tuple[str, dict]:
         except SceneError as exc:
             raise SweepError(f"[sweep] scene = {scene!r}: {exc}") from None
     try:
-        return str(path), tomllib.loads(path.read_text())
+        return str(path), tomllib.loads(read_text_file(path, "[sweep] scene file", SweepError))
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(f"[sweep] scene = {scene!r}: invalid TOML in {path}: {exc}") from None
 
@@ -179,8 +217,30 @@ def _member_scene(base: dict, overrides: dict[str, Any]) -> Scene:
     return scene_from_dict(data)
 
 
-def sweep_from_toml(text: str, folder: str | Path = ".", default_name: str = "sweep") -> SweepSpec:
-    """Parse and validate a sweep file's text (``folder``: where relative scene paths start)."""
+def _check_size(grid: dict[str, list], n_listed: int, max_members: int) -> None:
+    """Refuse a sweep of more than ``max_members`` members, from the lists' lengths alone
+    (before any member, or the grid's points, is built)."""
+    size = max(1, n_listed)
+    for values in grid.values():
+        size *= len(values)
+    if size > max_members:
+        shape = " × ".join(str(len(v)) for v in grid.values()) or "0"
+        listed = f" × {n_listed} [[sweep.members]]" if n_listed else ""
+        raise SweepError(
+            f"[sweep.grid] makes {size:,} members ({shape}{listed}): allowed at most "
+            f"{max_members:,}; split the sweep, or raise the limit (--max-members, "
+            "sweep_from_toml(max_members=...))"
+        )
+
+
+def sweep_from_toml(
+    text: str,
+    folder: str | Path = ".",
+    default_name: str = "sweep",
+    max_members: int = MAX_MEMBERS,
+) -> SweepSpec:
+    """Parse and validate a sweep file's text (``folder``: where relative scene paths start;
+    ``max_members``: the most members allowed, :data:`MAX_MEMBERS` by default)."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -246,12 +306,13 @@ def sweep_from_toml(text: str, folder: str | Path = ".", default_name: str = "sw
         where = f"[[sweep.members]] #{i + 1}"
         entry = dict(entry)
         given = entry.pop("name", None)
-        if given is not None and (not isinstance(given, str) or not _NAME.match(given)):
-            raise SweepError(f"{where} name = {given!r}: allowed characters are A-Z a-z 0-9 . _ -")
+        if given is not None:
+            check_member_name(given, where)
         keys = _flatten(entry, where)
         for key, value in keys.items():
             _check_scalar(where, key, value)
         explicit.append((given, keys))
+    _check_size(grid, len(explicit), max_members)
     points = [dict(zip(grid, combo, strict=True)) for combo in itertools.product(*grid.values())]
     varied = set(grid).union(*(keys for _, keys in explicit))
     shorts = [k.split(".")[1] for k in varied]
@@ -266,6 +327,7 @@ def sweep_from_toml(text: str, folder: str | Path = ".", default_name: str = "sw
             else:
                 member_name = _auto_name(parameters, ambiguous)
             where = ", ".join(f"{k} = {v!r}" for k, v in parameters.items()) or "no keys"
+            check_member_name(member_name, f"member ({where}):")
             try:
                 scene = _member_scene(base, overrides)
             except SceneError as exc:
@@ -291,9 +353,10 @@ def sweep_from_toml(text: str, folder: str | Path = ".", default_name: str = "sw
     )
 
 
-def load_sweep(path: str | Path) -> SweepSpec:
+def load_sweep(path: str | Path, max_members: int = MAX_MEMBERS) -> SweepSpec:
     """Load and validate a sweep file (see the module docstring); raises :class:`SweepError`."""
     path = Path(path)
     if not path.exists():
         raise SweepError(f"sweep file {str(path)!r} does not exist")
-    return sweep_from_toml(path.read_text(), path.parent, default_name=path.stem)
+    text = read_text_file(path, "sweep file", SweepError)
+    return sweep_from_toml(text, path.parent, default_name=path.stem, max_members=max_members)

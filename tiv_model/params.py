@@ -53,6 +53,20 @@ PARAMETER_INFO: dict[str, tuple[str, str, float, bool, float, bool, str]] = {
 
 SYMBOLS: dict[str, str] = {name: info[0] for name, info in PARAMETER_INFO.items()}
 
+#: Largest magnitude of any parameter, and of the derived quantities in :data:`_DERIVED`: the
+#: model takes powers and logarithms of products of parameters (k·p_r, (v/N)^X), which overflow
+#: far from the parameter that caused it ("math domain error"); no calibrated value comes near
+#: (the calibration's own search bounds stop at 1e5).
+MAX_MAGNITUDE = 1.0e8
+
+#: Derived quantities checked at construction: description, the symbols it depends on, value.
+_DERIVED: tuple[tuple[str, str, Callable[[Any], float]], ...] = (
+    ("energy exponent X = r/((n-1) lambda_star)", "r, n, lambda_star",
+     lambda p: p.energy_exponent),
+    ("bulk modulus scale k p_r", "k, p_r", lambda p: p.k * p.p_r),
+    ("shear modulus scale g p_r", "g, p_r", lambda p: p.g * p.p_r),
+)  # fmt: skip
+
 
 @dataclass(frozen=True)
 class Parameters:
@@ -93,6 +107,27 @@ class Parameters:
                 raise ParameterError(
                     f"parameter {name} ({symbol}, {meaning}) = {value!r} is not allowed: "
                     f"need {lo_s}{symbol}{hi_s} (units: {units})"
+                )
+            if abs(value) > MAX_MAGNITUDE:
+                raise ParameterError(
+                    f"parameter {name} ({symbol}, {meaning}) = {value!r} is not allowed: "
+                    f"need |{symbol}| <= {MAX_MAGNITUDE:g} (units: {units}; larger values "
+                    "overflow the model's powers and logarithms)"
+                )
+        self._check_derived()
+
+    def _check_derived(self) -> None:
+        """Refuse parameters that are each allowed but whose combinations the model uses
+        (:data:`_DERIVED`) are not finite or exceed :data:`MAX_MAGNITUDE`, naming them."""
+        for what, symbols, compute in _DERIVED:
+            try:
+                value = compute(self)
+            except (OverflowError, ZeroDivisionError):
+                value = math.inf
+            if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+                raise ParameterError(
+                    f"parameters {symbols}: the {what} = {value:g} is beyond "
+                    f"{MAX_MAGNITUDE:g} in magnitude: change {symbols}"
                 )
 
     # -- symbol access -------------------------------------------------------------------------
