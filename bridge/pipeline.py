@@ -18,7 +18,12 @@ file without it and no option fails, unless every stress and modulus read has a 
 Outputs in ``out_dir``: ``calibration.json`` (parameters, standard errors, stages, fit quality,
 what was fitted), ``calibration.txt`` (text report), ``prediction_<path>.nc`` (model runs) and
 ``prediction_probes_<path>.nc`` (elastic law at the measured probe states), the figures
-``bridge_*.png`` and ``report.md``.
+``bridge_*.png``, ``report.md`` and ``calibration_files.json``, the list of every file the
+calibration wrote (:mod:`bridge.outputs`): an earlier calibration's files that are not written
+again (a ``prediction_radial_2.nc`` when there is one radial path now) are deleted, and nothing
+else. The command line refuses an ``--out`` holding an earlier calibration unless
+``--overwrite``, a DEM run folder as ``--out``, and a symbolic link where it writes (one line,
+exit code 2); a full disk is exit code 4 (:mod:`tiv_model.command_line`).
 """
 
 from __future__ import annotations
@@ -45,8 +50,9 @@ from tiv_model.command_line import (
 from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
-from .figures import write_figures
+from .figures import PANELS, write_figures
 from .identifiability import identifiability
+from .outputs import MANIFEST, Outputs, check_out, files_now, read_manifest, refuse_links
 from .predict import predict_paths, predict_probes, summary
 from .replicas import calibrate_replicas
 from .report import report_markdown, write_report
@@ -157,8 +163,22 @@ def _stress_scale(
     return float(value), f"from the attribute stress_scale_kpa of {path.name}"
 
 
+def _relative_inside(path, out: Path) -> str | None:
+    """``path`` relative to ``out`` (``/``-separated) when it lies inside it, else None."""
+    if path is None:
+        return None
+    try:
+        return Path(path).resolve().relative_to(out.resolve()).as_posix()
+    except ValueError:
+        return None
+
+
 def calibrate_from_results(
-    history_path, probes_path, out_dir, options: PipelineOptions | Mapping | None = None
+    history_path,
+    probes_path,
+    out_dir,
+    options: PipelineOptions | Mapping | None = None,
+    outputs: Outputs | None = None,
 ) -> dict:
     """Calibrate on DEM results, predict, draw and report (see the module docstring).
 
@@ -167,11 +187,20 @@ def calibrate_from_results(
     r, ω stay at their starting values, as the report says). Returns a JSON-able dict:
     ``parameters``, ``standard_errors``, ``fitted``, ``out_of_sample``, ``predictions`` (rows of
     :func:`bridge.predict.summary`), ``files`` and ``seconds``.
+
+    ``outputs``: the :class:`bridge.outputs.Outputs` of a command that lists and replaces the
+    folder's files itself (the command line); None: this call lists what it writes in
+    ``calibration_files.json`` and deletes the earlier calibration's files it did not write
+    again (never its input files). A symbolic link where it writes is refused.
     """
     t0 = time.perf_counter()
     options = pipeline_options(options)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    refuse_links(out)
+    own = outputs is None
+    earlier = set(read_manifest(out) or []) if own else set()
+    outputs = Outputs(out) if outputs is None else outputs
     history_file = Path(history_path)
     used_history = history_file
     sibling = history_file.with_name("relaxed_states.nc")
@@ -219,15 +248,17 @@ def calibrate_from_results(
     model_probes = predict_probes(result, probes, model_options) if probes else {}
     files: dict[str, str] = {}
     for path, ds in runs.items():
-        target = out / f"prediction_{path}.nc"
+        target = outputs.path(f"prediction_{path}.nc")
         ds.to_netcdf(target)
         files[f"prediction_{path}"] = str(target)
     for path, ds in model_probes.items():
-        target = out / f"prediction_probes_{path}.nc"
+        target = outputs.path(f"prediction_probes_{path}.nc")
         ds.to_netcdf(target)
         files[f"prediction_probes_{path}"] = str(target)
     figures = {}
     if options.figures:
+        for name in (*PANELS, "overview"):
+            outputs.path(f"bridge_{name}.png")
         figures = write_figures(series, probes, runs, model_probes, out)
         files.update({f"figure_{k}": str(v) for k, v in figures.items()})
     description = {
@@ -244,9 +275,9 @@ def calibrate_from_results(
         "model fabric at A": options.calibration.initial_fabric,
     }
     text = report_markdown(result, runs, model_probes, probes, description, figures, out, ide)
-    files["report"] = str(write_report(out / "report.md", text))
+    files["report"] = str(write_report(outputs.path("report.md"), text))
     extra = "" if ide is None else "\n[[What the data determine]]\n" + ide.statement() + "\n"
-    (out / "calibration.txt").write_text(result.report() + "\n" + extra)
+    outputs.path("calibration.txt").write_text(result.report() + "\n" + extra)
     files["calibration_text"] = str(out / "calibration.txt")
     rows = summary(runs) + summary({f"{p} (probes)": ds for p, ds in model_probes.items()})
     outcome = {
@@ -270,8 +301,12 @@ def calibrate_from_results(
     calibration = result.to_dict() | {"data": outcome["data"], "predictions": rows}
     if ide is not None:
         calibration["identifiability"] = ide.to_dict()
-    (out / "calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
+    outputs.path("calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
     files["calibration"] = str(out / "calibration.json")
+    if own:
+        inputs = {_relative_inside(p, out) for p in (used_history, probes_path)} - {None}
+        outputs.remove_earlier(keep=inputs)
+        files["manifest"] = str(outputs.save(keep=inputs & earlier))
     return outcome
 
 
@@ -284,10 +319,17 @@ def calibrate_on_replicas(folders, out_dir, options=None, say=print) -> dict:
     return calibrate_replicas(folders, out_dir, calibrate_from_results, opts, quick, say)
 
 
-def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float = 0.0):
+def synthetic_inputs(
+    out_dir,
+    increments: int = 8,
+    seed: int = 0,
+    noise: float = 0.0,
+    outputs: Outputs | None = None,
+):
     """Write synthetic DEM-like ``relaxed_states.nc`` and ``probes.nc`` (Table 1 perturbed:
     g 40, k 70, n 0.2, r 0.5, N 1.35, λ* 0.22, M 1.0, c 1.5, s 10, z 6, ω 20) into
-    ``out_dir``; returns (history path, probes path, the true Parameters)."""
+    ``out_dir`` (listed in ``outputs`` when given); returns (history path, probes path, the
+    true Parameters)."""
     from .synthetic import synthetic_results
 
     truth = TABLE1.replace(
@@ -313,8 +355,9 @@ def synthetic_inputs(out_dir, increments: int = 8, seed: int = 0, noise: float =
     )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    history = out / "synthetic_relaxed_states.nc"
-    probes = out / "synthetic_probes.nc"
+    outputs = Outputs(out) if outputs is None else outputs
+    history = outputs.path("synthetic_relaxed_states.nc")
+    probes = outputs.path("synthetic_probes.nc")
     syn.history.to_netcdf(history)
     syn.probes.to_netcdf(probes)
     return history, probes, truth
@@ -339,6 +382,12 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
     )
     parser.add_argument("--probes", help="DEM probes.nc (optional: no elastic stage without it)")
     parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the earlier calibration in --out: delete the files its "
+        "calibration_files.json lists, nothing else (default: such an --out is refused)",
+    )
     parser.add_argument(
         "--synthetic",
         action="store_true",
@@ -485,6 +534,22 @@ def _check_files(args: argparse.Namespace) -> None:
 def _run(argv: list[str], prog: str = PROG) -> int:
     parser = _parser(prog)
     args = parser.parse_args(argv)
+    out = check_out(args.out, args.overwrite)
+    outputs = Outputs(out)
+    if args.overwrite:
+        outputs.remove_earlier()
+    before = files_now(out)
+    try:
+        return _calibrate(parser, args, outputs)
+    finally:
+        if out.is_dir():  # what was written, also by a run that failed half-way
+            outputs.add_written_since(before)
+            if outputs.written or (out / MANIFEST).exists():
+                outputs.save()
+
+
+def _calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace, outputs) -> int:
+    """The command's work once ``--out`` is checked; every file written is in ``outputs``."""
     stress_scale = args.stress_scale
     if args.replicas and (args.history or args.probes or args.synthetic):
         raise UsageError(
@@ -497,7 +562,7 @@ def _run(argv: list[str], prog: str = PROG) -> int:
         if args.history or args.probes:
             raise UsageError("--synthetic makes its own inputs: leave out --history and --probes")
         _check_files(args)
-        history, probes, truth = synthetic_inputs(args.out, noise=args.noise)
+        history, probes, truth = synthetic_inputs(args.out, noise=args.noise, outputs=outputs)
     else:
         if not args.history:
             parser.error("--history is required (or --synthetic, or --replicas)")
@@ -535,7 +600,7 @@ def _run(argv: list[str], prog: str = PROG) -> int:
         if not args.quiet:
             print((Path(args.out) / "replicas.md").read_text())
         return 0
-    outcome = calibrate_from_results(history, probes, args.out, options)
+    outcome = calibrate_from_results(history, probes, args.out, options, outputs=outputs)
     if args.quiet:
         return 0
     print(Path(outcome["files"]["calibration_text"]).read_text())

@@ -17,15 +17,19 @@ Checked before anything runs: the paths load, so ``--p-max`` and ``--sigma-v-max
 ``--p0`` (an unloading path is ``unload``); ``|--eta| < M`` (the critical stress ratio; paths
 with η close to M may still stop early, as the fabric turns the yield surface); increments from
 1 to :data:`MAX_INCREMENTS` (longer paths: call :mod:`tiv_model.drivers` from Python); the
-output file's folder exists or can be made and ``--out`` is not a folder.
+output file's folder exists or can be made, ``--out`` is not a folder, and ``--out`` does not
+exist unless ``--overwrite`` (then the file is replaced atomically: written beside it and
+renamed, so a link at ``--out`` is replaced, never written through).
 
 Exit codes: 0 done; 1 the path stopped early on a model error (the file holds what was done);
-2 bad input (one line: what is wrong, what is allowed, what to do).
+2 bad input (one line: what is wrong, what is allowed, what to do); 4 disk full (ENOSPC or
+EDQUOT, one line; nothing half-written is left at ``--out``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -93,6 +97,11 @@ def _parser() -> argparse.ArgumentParser:
                 help=f"stress increments of the path, 1 to {MAX_INCREMENTS:,} (default 100)",
             )
             p.add_argument("--out", type=Path, required=True, help="netCDF file to write")
+            p.add_argument(
+                "--overwrite",
+                action="store_true",
+                help="replace --out if it exists (default: an existing --out is refused)",
+            )
 
     p = sub.add_parser("isotropic", help="isotropic compression to --p-max")
     p.add_argument("--p-max", type=positive_float, required=True, help="final mean stress, kPa")
@@ -171,6 +180,10 @@ def _check_path(args: argparse.Namespace, params: Parameters) -> None:
             raise UsageError(f"--out {out} is a folder: give the netCDF file to write")
         if out.parent.exists() and not out.parent.is_dir():
             raise UsageError(f"--out {out}: {out.parent} is a file, not a folder")
+        if (out.exists() or out.is_symlink()) and not args.overwrite:
+            raise UsageError(
+                f"--out {out} exists; add --overwrite to replace it, or choose another name"
+            )
 
 
 def _run(argv: list[str]) -> int:
@@ -213,7 +226,7 @@ def _run(argv: list[str]) -> int:
         # e.g. the initial state itself is impossible (v < 1 at p0)
         raise UsageError(f"{type(exc).__name__}: {exc}") from exc
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    ds.to_netcdf(args.out)
+    _write_replacing(ds, args.out)
     term = ds.attrs["termination"]
     if not args.quiet:
         last = ds.isel(step=-1)
@@ -227,6 +240,18 @@ def _run(argv: list[str]) -> int:
         print(f"{PROG}: path stopped early: {term}", file=sys.stderr)
         return 1
     return 0
+
+
+def _write_replacing(ds, target: Path) -> None:
+    """Write ``ds`` to a temporary file beside ``target`` and rename it onto ``target``: an
+    error (a full disk) leaves no half file, and a link at ``target`` is replaced, not
+    followed."""
+    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        ds.to_netcdf(temporary)
+        os.replace(temporary, target)
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def main(argv: list[str] | None = None) -> int:
