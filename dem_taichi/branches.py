@@ -8,20 +8,35 @@ runtime must not be forked) and merges the outcomes into the run's writers and l
 of the serial run, which they equal (the serial engine is deterministic).
 
 Each finished branch's outcome is also saved in the run's ``resume/`` folder
-(:mod:`dem_taichi.protocol_resume`), by the process that ran it (:func:`run_branch`, or
-:func:`run_branch_saved` in the serial run), so that an interrupted run resumes with only the
-branches still missing.
+(:mod:`dem_taichi.protocol_resume`, data-only files tied to the run's id and scene hash), by the
+process that ran it (:func:`run_branch`, or :func:`run_branch_saved` in the serial run), so that
+an interrupted run resumes with only the branches still missing.
+
+A worker reads state A from the checkpoint named relative to the run folder it is given
+(``state_A.npz``, checked to hold the run's scene), never by an absolute path saved earlier: a
+moved run folder resumes, and another folder's file is never read. Workers die with the
+parent (:func:`dem_taichi.worker_lifetime.die_with_parent`): a ``kill -9`` of the run leaves no
+branch process behind.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import ProtocolConfig, probing_settings, protocol_settings
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog
-from dem_taichi.protocol_resume import RecordingWriter, save_branch
+from dem_taichi.protocol_resume import (
+    RecordingWriter,
+    ResumeFileError,
+    RunIdentity,
+    inside_run,
+    relative_to_run,
+    save_branch,
+)
+from dem_taichi.worker_lifetime import die_with_parent
 
 __all__ = [
     "branch_names",
@@ -82,44 +97,47 @@ class BranchOutcome:
 
 def run_branch(
     branch: str,
+    run: RunIdentity,
     checkpoint_A: str,
     state_A: RelaxedState,
     arch: str,
     precision: str,
-    out_dir: str | None,
+    save_states: bool,
     progress: bool,
-    index: int | None = None,
-    resume_dir: str | None = None,
+    index: int,
 ) -> BranchOutcome:
     """Run one branch from the checkpoint of state A in this process (a worker of
-    :func:`dem_taichi.protocol.run_protocol`); the scene, with its protocol and probing
-    sections, comes from the checkpoint. With ``resume_dir`` the outcome is saved there as the
-    ``index``-th branch (:func:`dem_taichi.protocol_resume.save_branch`)."""
+    :func:`dem_taichi.protocol.run_protocol`) and save its outcome in the run's ``resume/`` as
+    the ``index``-th branch (:func:`dem_taichi.protocol_resume.save_branch`).
+
+    ``checkpoint_A`` is relative to the run folder ``run.path`` (resolved there, so a moved
+    folder works); the scene, with its protocol and probing sections, comes from the checkpoint.
+    ``save_states``: the branch writes its state files into the run folder."""
     from dem_taichi.engine import Simulation
     from dem_taichi.probing import ProbeRecorder
 
-    sim = Simulation.from_checkpoint(checkpoint_A, arch=arch, precision=precision)
+    source = inside_run(checkpoint_A, run.path, run.path / "run.json")
+    sim = Simulation.from_checkpoint(source, arch=arch, precision=precision)
     config, probing = protocol_settings(sim.scene), probing_settings(sim.scene)
     history = _RecordList()
     log = RunLog()
     recorder = ProbeRecorder(probing, config, log)
     runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress, log=log)
-    runner.out_dir = Path(out_dir) if out_dir is not None else None
+    runner.out_dir = run.path if save_states else None
     runner.bars = False  # beside other branch processes on one terminal: lines, not bars
     runner.state_A = sim.get_state()
     log.states["A"] = state_A
     run_branch_on(runner, branch)
     del log.states["A"]
     outcome = BranchOutcome(branch=branch, history=list(history), log=log)
-    if resume_dir is not None and index is not None:
-        save_branch(resume_dir, index, outcome)
+    save_branch(run, index, outcome)
     return outcome
 
 
-def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, resume_dir) -> None:
+def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, run: RunIdentity) -> None:
     """Run one branch on the serial ``runner`` as :func:`run_branch_on` does (its records reach
     the run's writers as they come), with a log of its own merged into the run's at the end,
-    and save its outcome as the ``index``-th branch in ``resume_dir``."""
+    and save its outcome as the ``index``-th branch in the ``resume/`` folder of ``run``."""
     main_log, history = runner.log, runner.history
     recorder = runner.probe_hook
     log = RunLog()
@@ -137,7 +155,7 @@ def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, resume_dir
     del log.states["A"]
     main_log.merge(log)
     records = recording.records if recording is not None else []
-    save_branch(resume_dir, index, BranchOutcome(branch=branch, history=records, log=log))
+    save_branch(run, index, BranchOutcome(branch=branch, history=records, log=log))
 
 
 def merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:
@@ -159,35 +177,64 @@ def _stop_workers(pool) -> None:
         process.terminate()
 
 
+def _checkpoint_for_workers(runner, run: RunIdentity) -> str:
+    """State A's checkpoint for the branch processes, relative to the run folder: the run's
+    ``state_A.npz`` (written now from the engine, which is at A, if there is none), checked to
+    be whole and to hold the run's scene."""
+    from dem_taichi.config import scene_from_toml, scene_to_toml
+    from dem_taichi.io.checkpoint import CheckpointError, load_checkpoint
+    from dem_taichi.io.run_directory import scene_sha256
+
+    saved = runner.checkpoints.get("A")
+    path = Path(saved) if saved is not None else run.path / "state_A.npz"
+    if not path.exists():
+        path = runner.sim.save_checkpoint(path)
+    remedy = "delete it and resume again (it is written again from resume/A.npz)"
+    try:
+        _, meta = load_checkpoint(path)
+        scene_hash = scene_sha256(scene_to_toml(scene_from_toml(meta["scene_toml"])))
+    except (CheckpointError, KeyError, ValueError) as error:
+        raise ResumeFileError(f"{path}: damaged state A ({error}); {remedy}") from None
+    if scene_hash != run.scene_sha256:
+        raise ResumeFileError(
+            f"{path}: holds another scene (sha256 {scene_hash[:12]}) than the run "
+            f"(sha256 {run.scene_sha256[:12]}): copied from another run; {remedy}"
+        )
+    return relative_to_run(path, run.path)
+
+
 def run_branches_in_processes(
-    runner, history, relaxed, branches, workers, arch, precision, progress, done=None
+    runner, history, relaxed, branches, workers, arch, precision, progress, run, done=None
 ) -> None:
     """Run the branches from A in ``workers`` spawned processes and merge them in order into
     ``history``, ``relaxed`` (the writers of history.nc and relaxed_states.nc) and
     ``runner.log`` (where the probe recorder of the run writes too).
 
     A branch that fails does not lose the others: the finished ones are merged (their records
-    reach history.nc and relaxed_states.nc), then the first failure is raised. ``done``: branch
-    name → saved :class:`BranchOutcome` of a resumed run; those are merged in their place, not
-    run again. Every branch run here saves its outcome in ``<run>/resume/``.
+    reach history.nc and relaxed_states.nc), then the first failure is raised. ``run``: the
+    :class:`RunIdentity` of the run folder. ``done``: branch name → saved
+    :class:`BranchOutcome` of a resumed run; those are merged in their place, not run again.
+    Every branch run here saves its outcome in ``<run>/resume/``. The workers die with this
+    process (:func:`dem_taichi.worker_lifetime.die_with_parent`).
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    checkpoint = runner.checkpoints.get("A")
-    if checkpoint is None:
-        checkpoint = str(runner.sim.save_checkpoint(Path(runner.out_dir) / "state_A.npz"))
-    out_dir = str(runner.out_dir) if runner.config.save_states else None
-    resume_dir = str(runner.out_dir)
+    checkpoint = _checkpoint_for_workers(runner, run)
+    save_states = bool(runner.config.save_states)
     done = done or {}
     todo = [b for b in branches if b not in done]
     runner._say(f"[branches] {', '.join(todo)} from A in {workers} processes")
     context = multiprocessing.get_context("spawn")  # Taichi's runtime must not be forked
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    pool = ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=die_with_parent,
+        initargs=(os.getpid(),),
+    )  # fmt: skip
+    with pool:
         futures = {
             b: pool.submit(
-                run_branch, b, checkpoint, runner.states["A"], arch, precision, out_dir,
-                progress, index, resume_dir,
+                run_branch, b, run, checkpoint, runner.states["A"], arch, precision, save_states,
+                progress, index,
             )
             for index, b in enumerate(branches)
             if b not in done

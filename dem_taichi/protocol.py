@@ -72,9 +72,11 @@ from dem_taichi.protocol_records import (
 )
 from dem_taichi.protocol_resume import (
     RecordingWriter,
+    RunIdentity,
     StageA,
     load_branches,
     load_stage_a,
+    refuse_pickles,
     save_stage_a,
     saved_summary,
 )
@@ -144,7 +146,9 @@ def run_protocol(
     ``resume`` continues the interrupted protocol run in ``out_dir`` (the same scene only):
     from its saved state A, running only the branches without a saved outcome
     (:mod:`dem_taichi.protocol_resume`); the outputs equal those of an uninterrupted run. A run
-    stopped before A starts again from the gas.
+    stopped before A starts again from the gas. The resume files are data only and must carry
+    this run's id and scene hash; a damaged or foreign one is refused with one line naming it
+    (:class:`dem_taichi.protocol_resume.ResumeFileError`).
     """
     from dem_taichi.cost import check_cost, cost_lines
     from dem_taichi.engine import Simulation
@@ -174,12 +178,16 @@ def run_protocol(
         )
     if resume:
         run_dir = reopen_run(out_dir, "protocol", scene.scene.name, scene_to_toml(scene))
-        saved_a = load_stage_a(run_dir.path)
+        refuse_pickles(run_dir.path)
+        identity = RunIdentity.of(run_dir)
+        saved_a = load_stage_a(identity)
+        done = load_branches(identity, branch_names(config)) if saved_a is not None else {}
     else:
         run_dir = start_run(
             out_dir, "protocol", scene.scene.name, scene_to_toml(scene), overwrite=overwrite
         )
-        saved_a = None
+        identity = RunIdentity.of(run_dir)
+        saved_a, done = None, {}
     out = run_dir.path
     effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
     log = RunLog()  # the one log of the run: the runner and the probe recorder write it
@@ -230,13 +238,12 @@ def run_protocol(
     )
     runner.out_dir = out
     branches = branch_names(config)
-    done = {}
     try:
         if saved_a is None:
             recording.append(sim.measure() | {"stage": "gas"})
             runner.compress_to_transition()
             save_stage_a(
-                out,
+                identity,
                 StageA(
                     recording.records,
                     recording_relaxed.records,
@@ -248,7 +255,6 @@ def run_protocol(
         else:
             start -= saved_a.seconds  # the wall time counts the run's time up to A
             _restore_stage_a(runner, saved_a, history, relaxed)
-            done = load_branches(out, branches)
             runner._say(
                 f"[resume] from state A; branches done: {', '.join(done) or 'none'}; to run: "
                 + (", ".join(b for b in branches if b not in done) or "none")
@@ -259,11 +265,12 @@ def run_protocol(
                 if branch in done:
                     merge_branch(runner, history, relaxed, done[branch])
                 else:
-                    run_branch_saved(runner, branch, index, out)
+                    run_branch_saved(runner, branch, index, identity)
         else:
             run_branches_in_processes(
-                runner, history, relaxed, branches, workers, arch, precision, progress, done
-            )
+                runner, history, relaxed, branches, workers, arch, precision, progress, identity,
+                done,
+            )  # fmt: skip
     finally:
         history.close()
         relaxed.close()

@@ -7,6 +7,10 @@ either the previous checkpoint or the new one, never a mix. The file is an uncom
 one extra member, ``__meta__``: a JSON text with the format name and version, the name, dtype and
 shape of every array (checked on load) and the caller's metadata. No pickles: object arrays are
 refused, and files are loaded with ``allow_pickle=False``.
+
+A damaged file (truncated, a flipped byte, not a checkpoint) is :class:`CheckpointError`, one
+line naming it; :func:`latest_intact_checkpoint` picks the newest checkpoint of a list that
+loads whole, saying in one line which damaged one it passed over for the older one.
 """
 
 from __future__ import annotations
@@ -17,7 +21,8 @@ import os
 import re
 import tempfile
 import zipfile
-from collections.abc import Mapping
+import zlib
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -131,39 +136,98 @@ def load_checkpoint(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray]
     if not source.is_file():
         raise FileNotFoundError(f"checkpoint {source} does not exist")
     try:
-        with np.load(source, allow_pickle=False) as archive:
-            if META_KEY not in archive.files:
-                raise CheckpointError(f"{source} is not a dem_taichi checkpoint (no {META_KEY})")
-            header = json.loads(str(archive[META_KEY][()]))
-            if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
-                raise CheckpointError(f"{source} is not a {FORMAT_NAME} file")
-            version = header.get("format_version")
-            if not isinstance(version, int) or version > FORMAT_VERSION:
-                raise CheckpointError(
-                    f"{source} has checkpoint format version {version!r}; this code reads "
-                    f"versions up to {FORMAT_VERSION} (update dem_taichi or rerun)"
-                )
-            listed = header["arrays"]
-            stored = set(archive.files) - {META_KEY}
-            if set(listed) != stored:
-                raise CheckpointError(
-                    f"{source} is corrupt: arrays {sorted(stored)} do not match the header's "
-                    f"{sorted(listed)}"
-                )
-            arrays: dict[str, np.ndarray] = {}
-            for name, spec in listed.items():
-                array = archive[name]
-                if array.dtype.str != spec["dtype"] or list(array.shape) != spec["shape"]:
-                    raise CheckpointError(
-                        f"{source} is corrupt: array {name!r} is {array.dtype.str}{array.shape}, "
-                        f"the header says {spec['dtype']}{tuple(spec['shape'])}"
-                    )
-                arrays[name] = array
+        with _open_archive(source) as archive:
+            header = _read_header(source, archive)
+            arrays = _read_arrays(source, archive, header["arrays"])
+            meta = dict(header["meta"])
     except CheckpointError:
         raise
-    except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError) as error:
+    except _READ_ERRORS as error:
         raise CheckpointError(f"{source} is corrupt or not a checkpoint: {error}") from error
-    return arrays, dict(header["meta"])
+    return arrays, meta
+
+
+#: What reading a damaged or foreign file can raise (caught and reported as CheckpointError).
+_READ_ERRORS = (
+    zipfile.BadZipFile, zlib.error, ValueError, KeyError, TypeError, AttributeError, OSError,
+    EOFError,
+)  # fmt: skip
+
+
+def _open_archive(source: Path):
+    """The ``.npz`` archive of ``source``, read with ``allow_pickle=False`` (a ``.npy`` or
+    anything else is refused)."""
+    archive = np.load(source, allow_pickle=False)
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise CheckpointError(f"{source} is not a dem_taichi checkpoint (not an .npz archive)")
+    return archive
+
+
+def _read_header(source: Path, archive) -> dict[str, Any]:
+    """The checked JSON header of an open checkpoint archive."""
+    if META_KEY not in archive.files:
+        raise CheckpointError(f"{source} is not a dem_taichi checkpoint (no {META_KEY})")
+    header = json.loads(str(archive[META_KEY][()]))
+    if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+        raise CheckpointError(f"{source} is not a {FORMAT_NAME} file")
+    version = header.get("format_version")
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise CheckpointError(
+            f"{source} has checkpoint format version {version!r}; this code reads "
+            f"versions up to {FORMAT_VERSION} (update dem_taichi or rerun)"
+        )
+    if not (isinstance(header.get("arrays"), dict) and isinstance(header.get("meta"), dict)):
+        raise CheckpointError(f"{source} is corrupt: its header lists no arrays or no meta")
+    return header
+
+
+def _read_arrays(source: Path, archive, listed: dict) -> dict[str, np.ndarray]:
+    """Every array of an open checkpoint archive, checked against the header's list (the zip
+    checks each member's CRC-32 as it is read)."""
+    stored = set(archive.files) - {META_KEY}
+    if set(listed) != stored:
+        raise CheckpointError(
+            f"{source} is corrupt: arrays {sorted(stored)} do not match the header's "
+            f"{sorted(listed)}"
+        )
+    arrays: dict[str, np.ndarray] = {}
+    for name, spec in listed.items():
+        array = archive[name]
+        if array.dtype.str != spec["dtype"] or list(array.shape) != spec["shape"]:
+            raise CheckpointError(
+                f"{source} is corrupt: array {name!r} is {array.dtype.str}{array.shape}, "
+                f"the header says {spec['dtype']}{tuple(spec['shape'])}"
+            )
+        arrays[name] = array
+    return arrays
+
+
+def latest_intact_checkpoint(
+    candidates: Sequence[str | os.PathLike[str]],
+    say: Callable[[str], None] | None = None,
+) -> Path | None:
+    """The newest of ``candidates`` (oldest first, as :func:`list_checkpoints` gives them)
+    that loads whole (every array's CRC and header checked), or None when none does.
+
+    Why: a checkpoint damaged on disk (a bad sector, a copy cut short) must not stop a resume
+    while an older intact one is there. Each damaged checkpoint passed over is reported with
+    one line to ``say`` naming it and the older one used instead.
+    """
+    paths = [Path(p) for p in candidates]
+    for position in range(len(paths) - 1, -1, -1):
+        try:
+            load_checkpoint(paths[position])
+            return paths[position]
+        except (CheckpointError, FileNotFoundError) as error:
+            older = paths[position - 1] if position > 0 else None
+            instead = f"falling back to {older}" if older else "no older checkpoint to use"
+            if say is not None:
+                say(f"checkpoint {paths[position]} is unusable ({_one_line(error)}); {instead}")
+    return None
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
 
 
 def checkpoint_meta(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -173,17 +237,12 @@ def checkpoint_meta(path: str | os.PathLike[str]) -> dict[str, Any]:
     if not source.is_file():
         raise FileNotFoundError(f"checkpoint {source} does not exist")
     try:
-        with np.load(source, allow_pickle=False) as archive:
-            if META_KEY not in archive.files:
-                raise CheckpointError(f"{source} is not a dem_taichi checkpoint (no {META_KEY})")
-            header = json.loads(str(archive[META_KEY][()]))
+        with _open_archive(source) as archive:
+            return dict(_read_header(source, archive)["meta"])
     except CheckpointError:
         raise
-    except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError) as error:
+    except _READ_ERRORS as error:
         raise CheckpointError(f"{source} is corrupt or not a checkpoint: {error}") from error
-    if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
-        raise CheckpointError(f"{source} is not a {FORMAT_NAME} file")
-    return dict(header.get("meta", {}))
 
 
 def list_checkpoints(directory: str | os.PathLike[str]) -> list[Path]:

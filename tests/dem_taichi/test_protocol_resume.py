@@ -40,9 +40,9 @@ def interrupted(tmp_path_factory):
 def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
     from dem_taichi.protocol_resume import saved_summary
 
-    assert (interrupted / "resume" / "A.pkl").exists()
-    assert (interrupted / "resume" / "branch_0.pkl").exists()
-    assert not (interrupted / "resume" / "branch_1.pkl").exists()
+    assert (interrupted / "resume" / "A.npz").exists()
+    assert (interrupted / "resume" / "branch_0.npz").exists()
+    assert not (interrupted / "resume" / "branch_1.npz").exists()
     text = saved_summary(interrupted, ["isotropic", "k0", "radial 1 0.4"])
     assert text == "state A and 1 of 3 branches from A are saved"
     assert not (interrupted / "summary.json").exists()
@@ -97,9 +97,9 @@ def test_resume_in_worker_processes_merges_saved_and_new_branches(interrupted):
     from dem_taichi.protocol import run_protocol
 
     for index in (1, 2):
-        (interrupted / "resume" / f"branch_{index}.pkl").unlink(missing_ok=True)
+        (interrupted / "resume" / f"branch_{index}.npz").unlink(missing_ok=True)
     result = run_protocol(smoke_protocol_scene(), interrupted, resume=True, workers=2)
-    assert (interrupted / "resume" / "branch_2.pkl").exists()
+    assert (interrupted / "resume" / "branch_2.npz").exists()
     _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
 
 
@@ -117,7 +117,7 @@ def test_sigint_on_the_command_line_then_resume(tmp_path):
     args += ["--set", "probing.dynamic=false", "--set", "protocol.path_increments=1"]
     proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 600
-    while not (out / "resume" / "A.pkl").exists() and proc.poll() is None:
+    while not (out / "resume" / "A.npz").exists() and proc.poll() is None:
         assert time.monotonic() < deadline, "state A not reached in 10 min"
         time.sleep(0.2)
     proc.send_signal(signal.SIGINT)
@@ -155,7 +155,7 @@ def test_sigterm_with_worker_processes_stops_them(tmp_path):
     ]
     proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 600
-    while not (out / "resume" / "A.pkl").exists() and proc.poll() is None:
+    while not (out / "resume" / "A.npz").exists() and proc.poll() is None:
         assert time.monotonic() < deadline, "state A not reached in 10 min"
         time.sleep(0.2)
     time.sleep(3.0)  # the branch processes have started
