@@ -195,3 +195,84 @@ def test_rotation_keeps_the_latest_steps(tmp_path):
     assert latest_checkpoint(tmp_path / "missing") is None
     with pytest.raises(ValueError, match="keep"):
         rotate_checkpoints(tmp_path, keep=0)
+
+
+def _write_header(path: Path, header) -> None:
+    """An archive shaped like a checkpoint whose JSON header is ``header``."""
+    with open(path, "wb") as stream:
+        np.savez(stream, x=np.zeros(2), __meta__=np.array(json.dumps(header)))
+
+
+@pytest.mark.parametrize(
+    "header",
+    [
+        {"format": "dem_taichi.checkpoint", "format_version": 1, "arrays": [], "meta": {}},
+        {"format": "dem_taichi.checkpoint", "format_version": 1, "arrays": {"x": 3}, "meta": {}},
+        {"format": "dem_taichi.checkpoint", "format_version": 1, "arrays": {}, "meta": []},
+        ["a", "list"],
+    ],
+    ids=["arrays a list", "array spec a number", "meta a list", "header a list"],
+)
+def test_a_malformed_header_is_reported_as_corrupt(tmp_path, header):
+    """Headers that are JSON but not a checkpoint's: CheckpointError, never a TypeError or
+    AttributeError (which the command line would report as an internal error)."""
+    path = tmp_path / "c.npz"
+    _write_header(path, header)
+    with pytest.raises(CheckpointError, match=str(path)):
+        load_checkpoint(path)
+
+
+def test_an_npy_file_is_not_a_checkpoint(tmp_path):
+    path = tmp_path / "c.npz"
+    with open(path, "wb") as stream:
+        np.save(stream, np.arange(3))
+    with pytest.raises(CheckpointError, match="not an .npz archive"):
+        load_checkpoint(path)
+    with pytest.raises(CheckpointError, match="not an .npz archive"):
+        checkpoint.checkpoint_meta(path)
+
+
+def _damage_middle(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF  # inside the array's data: the CRC-32 no longer fits
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        _damage_middle,
+        lambda p: p.write_bytes(p.read_bytes()[:100]),
+        lambda p: p.write_bytes(b""),
+    ],
+    ids=["flipped byte", "truncated", "empty"],
+)
+def test_a_damaged_newest_checkpoint_falls_back_to_the_older_one(tmp_path, damage):
+    older, newest = (
+        save_checkpoint(checkpoint_path(tmp_path, step), {"x": np.arange(4096.0) + step}, {})
+        for step in (100, 200)
+    )
+    damage(newest)
+    said: list[str] = []
+    assert checkpoint.latest_intact_checkpoint(list_checkpoints(tmp_path), said.append) == older
+    assert len(said) == 1 and "\n" not in said[0]
+    assert str(newest) in said[0] and f"falling back to {older}" in said[0]
+    assert load_checkpoint(older)[0]["x"][0] == 100.0
+
+
+def test_no_intact_checkpoint_gives_none_and_names_each_damaged_one(tmp_path):
+    paths = [save_checkpoint(checkpoint_path(tmp_path, s), {"x": np.zeros(9)}, {}) for s in (1, 2)]
+    for path in paths:
+        path.write_bytes(b"garbage")
+    said: list[str] = []
+    assert checkpoint.latest_intact_checkpoint(paths, said.append) is None
+    assert [str(p) in line for p, line in zip(reversed(paths), said, strict=True)] == [True, True]
+    assert said[-1].endswith("no older checkpoint to use")
+    assert checkpoint.latest_intact_checkpoint([], said.append) is None
+
+
+def test_an_intact_newest_checkpoint_is_used_without_a_word(tmp_path):
+    paths = [save_checkpoint(checkpoint_path(tmp_path, s), {"x": np.zeros(9)}, {}) for s in (1, 2)]
+    said: list[str] = []
+    assert checkpoint.latest_intact_checkpoint(paths, said.append) == paths[-1]
+    assert said == []
