@@ -41,6 +41,7 @@ import argparse
 import contextlib
 import csv
 import os
+import signal
 import sys
 import tempfile
 import time
@@ -51,13 +52,16 @@ from pathlib import Path
 from dem_taichi.sweep_member import (
     MEMBER_RECORD,
     TOPIC,
+    can_resume,
+    checked_member_dir,
     member_dir,
     now,
     read_json,
     run_member,
     write_json,
 )
-from dem_taichi.sweep_spec import Member, SweepError, SweepSpec, load_sweep
+from dem_taichi.sweep_spec import MAX_MEMBERS, Member, SweepError, SweepSpec, load_sweep
+from tiv_model.command_line import UsageError
 
 INDEX_JSON = "index.json"
 INDEX_CSV = "index.csv"
@@ -133,11 +137,13 @@ def read_index(out: str | Path) -> dict:
 
 
 def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], list[str], dict]:
-    """Members to run, members done, and why each one to run runs (for the progress lines)."""
+    """Members to run, members done, and why each one to run runs (for the progress lines).
+    Every member's folder is resolved and checked to lie in ``out/members`` first
+    (:func:`~dem_taichi.sweep_member.checked_member_dir`)."""
     to_run, done, why = [], [], {}
     stale = []
     for m in spec.members:
-        folder = member_dir(out, m.name)
+        folder = checked_member_dir(out, m.name)
         record = read_json(folder / MEMBER_RECORD)
         status = None if record is None else record.get("status")
         if status == "done" and (folder / "summary.json").exists():
@@ -154,12 +160,9 @@ def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], li
                 f"{folder} holds files not written by a sweep: move them or use a new --out"
             )
         elif status == "failed":
-            why[m.name] = f"failed before ({record.get('error', '?')}); running it again"
+            why[m.name] = f"failed before ({record.get('error', '?')}); {_restart(folder, m)}"
         elif status is not None:
-            why[m.name] = (
-                "unfinished; the protocol has no resume from checkpoints: running it again "
-                "from scratch"
-            )
+            why[m.name] = f"unfinished; {_restart(folder, m)}"
         to_run.append(m)
     if stale:
         raise SweepError(
@@ -169,34 +172,87 @@ def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], li
     return to_run, done, why
 
 
-def _cluster(scheduler: str | None, n_workers: int | None, spec: SweepSpec, n_tasks: int):
-    import dask
-    from distributed import Client, LocalCluster
+def _restart(folder: Path, member: Member) -> str:
+    """How a member run before starts again (what :func:`run_member` will do)."""
+    if can_resume(folder, member.scene_sha256):
+        return "resumes from its saved state A and finished branches"
+    return "it had not saved state A: runs again from the gas"
 
-    if scheduler:
-        return Client(scheduler), None, f"scheduler {scheduler}"
-    if n_workers is None:
-        n_workers = max(1, (os.cpu_count() or 1) // spec.workers)
-    n_workers = max(1, min(n_workers, n_tasks))
-    with dask.config.set(
-        {
-            "distributed.worker.multiprocessing-method": "spawn",  # never fork Taichi
-            "distributed.worker.daemon": False,  # a member may spawn its branch processes
-            "distributed.scheduler.allowed-failures": 1,  # a crashing member: one retry
-        }
-    ):
-        cluster = LocalCluster(
+
+def _first_line(spec: SweepSpec, done: list[str], to_run: list[Member], why: dict) -> str:
+    """The sweep's first progress line: a fresh start, or a resume saying what was done."""
+    total = len(spec.members)
+    if not done and not why:
+        return f"sweep {spec.name}: {total} members, {len(to_run)} to run"
+    counts = {
+        kind: sum(reason.startswith(kind) for reason in why.values())
+        for kind in ("unfinished", "failed", "done")
+    }
+    new = len(to_run) - sum(counts.values())
+    return (
+        f"sweep {spec.name}: resuming: {len(done)} of {total} members done before (skipped), "
+        f"{len(to_run)} to run ({counts['unfinished']} unfinished, {counts['failed']} failed, "
+        f"{counts['done']} changed, {new} not started)"
+    )
+
+
+def _local_cluster(n_workers: int, dashboard: str | None):
+    """A ``LocalCluster`` of ``n_workers`` spawned processes of one thread, on 127.0.0.1.
+
+    Without ``dashboard`` no HTTP service is offered: Dask's scheduler always opens an HTTP
+    server (on port 8787 even with ``dashboard_address=None``, with its JSON, info, proxy and
+    metrics routes); here it gets no routes and an ephemeral port on 127.0.0.1, and the
+    workers' HTTP servers no routes either. ``dashboard`` (e.g. ``"127.0.0.1:8787"``) opts in to
+    Dask's dashboard at that address."""
+    import dask
+    from distributed import LocalCluster
+
+    settings = {
+        "distributed.worker.multiprocessing-method": "spawn",  # never fork Taichi
+        "distributed.worker.daemon": False,  # a member may spawn its branch processes
+        "distributed.scheduler.allowed-failures": 1,  # a crashing member: one retry
+    }
+    if dashboard is None:
+        settings["distributed.scheduler.http.routes"] = []
+        settings["distributed.worker.http.routes"] = []
+    with dask.config.set(settings):
+        return LocalCluster(
             n_workers=n_workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            host="127.0.0.1",
+            dashboard_address=dashboard,
+            scheduler_kwargs={
+                "dashboard": dashboard is not None,
+                "dashboard_address": dashboard or "127.0.0.1:0",
+            },
             silence_logs=40,  # errors only: the sweep prints its own progress
         )
-    return (
-        Client(cluster),
-        cluster,
-        f"LocalCluster ({n_workers} process{'es' if n_workers > 1 else ''} × 1 thread)",
-    )
+
+
+def _cluster(
+    scheduler: str | None,
+    n_workers: int | None,
+    spec: SweepSpec,
+    n_tasks: int,
+    security=None,
+    dashboard: str | None = None,
+):
+    """The client, the local cluster (None with ``scheduler``) and a line saying where."""
+    from distributed import Client
+
+    if scheduler:
+        client = Client(scheduler, security=security) if security else Client(scheduler)
+        how = "TLS" if security else "unencrypted, unauthenticated"
+        return client, None, f"scheduler {scheduler} ({how})"
+    if n_workers is None:
+        n_workers = max(1, (os.cpu_count() or 1) // spec.workers)
+    n_workers = max(1, min(n_workers, n_tasks))
+    cluster = _local_cluster(n_workers, dashboard)
+    where = f"LocalCluster ({n_workers} process{'es' if n_workers > 1 else ''} × 1 thread)"
+    if dashboard is not None:
+        where += f", dashboard {cluster.dashboard_link}"
+    return Client(cluster), cluster, where
 
 
 def run_sweep(
@@ -208,10 +264,16 @@ def run_sweep(
     verbose: bool = False,
     say=print,
     command: str = "dem_taichi.sweep.run_sweep",
+    security=None,
+    dashboard: str | None = None,
 ) -> SweepOutcome:
     """Run the members of ``spec`` that are not done into ``out_dir`` (see the module
     docstring); returns the outcome with every member's index row. ``say`` prints a progress
-    line (``print`` by default); ``verbose`` also forwards each member's protocol lines."""
+    line (``print`` by default); ``verbose`` also forwards each member's protocol lines.
+    ``security``: a ``distributed.security.Security`` for ``scheduler`` (TLS; see the module
+    docstring); ``dashboard``: an address for the local cluster's Dask dashboard (default none).
+    A ``KeyboardInterrupt`` (SIGINT, or SIGTERM turned into one by the command line) closes the
+    cluster, writes the index and is raised again: a re-run resumes the unfinished members."""
     from distributed import as_completed
 
     start = time.perf_counter()
@@ -236,10 +298,7 @@ def run_sweep(
     )  # fmt: skip
     write_index(spec, out)
     outcome = SweepOutcome(out, [], ran=[m.name for m in to_run], skipped=done)
-    say(
-        f"sweep {spec.name}: {len(spec.members)} members, {len(done)} done before"
-        f"{' (skipped)' if done else ''}, {len(to_run)} to run"
-    )
+    say(_first_line(spec, done, to_run, why))
     for name, reason in why.items():
         say(f"  {name}: {reason}")
     if not to_run:
@@ -249,7 +308,7 @@ def run_sweep(
     def stamp() -> str:
         return f"[{time.perf_counter() - start:7.1f} s]"
 
-    folders = {str(member_dir(out, m.name).resolve()) for m in to_run}
+    folders = {str(checked_member_dir(out, m.name)) for m in to_run}
 
     def on_event(event) -> None:
         msg = event[1] if isinstance(event, tuple) else event
@@ -264,14 +323,16 @@ def run_sweep(
         elif msg.get("kind") == "line" and verbose:
             say(f"{stamp()}   {msg['member']}: {msg.get('text', '')}")
 
-    client, cluster, where = _cluster(scheduler, n_workers, spec, len(to_run))
+    client, cluster, where = _cluster(
+        scheduler, n_workers, spec, len(to_run), security=security, dashboard=dashboard
+    )
     try:
         say(f"{stamp()} running on {where}")
         with contextlib.suppress(Exception):
             client.subscribe_topic(TOPIC, on_event)
         futures = {}
         for m in to_run:
-            folder = member_dir(out, m.name).resolve()
+            folder = checked_member_dir(out, m.name)
             future = client.submit(
                 run_member,
                 m.name,
@@ -281,6 +342,7 @@ def run_sweep(
                 spec.precision,
                 spec.workers,
                 f"{command} (member {m.name})",
+                str(out.resolve()),
                 key=f"sweep-member-{m.name}-{os.urandom(4).hex()}",
                 pure=False,
             )
@@ -307,13 +369,6 @@ def run_sweep(
                 say(f"{stamp()} {m.name}: done in {record['seconds']:.1f} s {count}")
             else:
                 say(f"{stamp()} {m.name}: FAILED: {record['error']} {count}")
-    except KeyboardInterrupt:
-        say(
-            f"{stamp()} interrupted: the members still running are left unfinished; a re-run "
-            "resumes them from their saved state A (or from the gas, where they had not reached "
-            "it)"
-        )
-        raise
     finally:
         client.close()
         if cluster is not None:
@@ -332,19 +387,136 @@ def run_sweep(
 
 
 # -- command line -------------------------------------------------------------------------------
-def _run_command(args, prog: str) -> int:
-    spec = load_sweep(args.sweep)
-    outcome = run_sweep(
-        spec,
-        args.out,
-        scheduler=args.scheduler,
-        n_workers=args.n_workers,
-        overwrite=args.overwrite,
-        verbose=args.verbose,
-        say=(lambda _: None) if args.quiet else print,
-        command=f"{prog} " + " ".join(args.argv),
+def _no_control_characters(flag: str):
+    """An argparse ``type``: the text of ``flag``, refused when it holds a line break or other
+    control character (a pasted line break would cut an address or a path in two)."""
+
+    def parse(text: str) -> str:
+        bad = next((c for c in text if ord(c) < 32 or ord(c) == 127), None)
+        if bad is not None:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} contains the control character {bad!r} (a line break?)"
+            )
+        return text
+
+    parse.__name__ = flag
+    return parse
+
+
+def _security(args):
+    """The ``distributed.security.Security`` of ``--tls-ca-file/--tls-cert/--tls-key``, or None.
+
+    TLS authenticates both ends: the client checks the scheduler's certificate against the CA,
+    and a scheduler started with ``require-encryption`` and the same CA accepts only clients
+    with a certificate it signed."""
+    given = {
+        flag: value
+        for flag, value in (
+            ("--tls-ca-file", args.tls_ca_file),
+            ("--tls-cert", args.tls_cert),
+            ("--tls-key", args.tls_key),
+        )
+        if value
+    }
+    scheduler = args.scheduler or ""
+    if not given:
+        if scheduler.startswith("tls://"):
+            raise UsageError(
+                f"--scheduler {scheduler} is a TLS address: give --tls-ca-file and --tls-cert "
+                "(and --tls-key unless the certificate file holds the key)"
+            )
+        return None
+    if not scheduler:
+        raise UsageError(
+            f"{', '.join(given)} apply to --scheduler only (the local cluster stays on "
+            "127.0.0.1): give --scheduler tls://HOST:PORT"
+        )
+    missing = [flag for flag in ("--tls-ca-file", "--tls-cert") if flag not in given]
+    if missing:
+        raise UsageError(f"{', '.join(given)} need {' and '.join(missing)} as well")
+    for flag, value in given.items():
+        if not Path(value).is_file():
+            raise UsageError(f"{flag} {value}: no such file")
+    if not scheduler.startswith("tls://"):
+        raise UsageError(
+            f"--scheduler {scheduler} with TLS certificates: the address must start with tls://"
+        )
+    from distributed.security import Security
+
+    return Security(
+        tls_ca_file=args.tls_ca_file,
+        tls_client_cert=args.tls_cert,
+        tls_client_key=args.tls_key,
+        require_encryption=True,
     )
+
+
+class _Stop:
+    """SIGINT/SIGTERM during a sweep: the first raises ``KeyboardInterrupt`` (run_sweep closes
+    the cluster and writes the index), later ones are ignored while that clean-up runs."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._previous: dict[int, object] = {}
+
+    def _handle(self, signum: int, frame) -> None:
+        if self.received is None:
+            self.received = signum
+            raise KeyboardInterrupt
+
+    def __enter__(self) -> _Stop:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+
+def _stopped_line(prog: str, spec: SweepSpec, out: Path, signum: int, argv: list[str]) -> str:
+    """The one line printed when a sweep is stopped by a signal: what is done, how to resume."""
+    rows = []
+    with contextlib.suppress(SweepError, OSError):
+        rows = read_index(out)["members"]
+    status = [r.get("status") for r in rows]
+    unfinished = sum(s in ("running", "failed", "stale") for s in status)
+    return (
+        f"{prog}: {signal.Signals(signum).name}: stopped; {status.count('done')} of "
+        f"{len(spec.members)} members done, {unfinished} unfinished (index {out / INDEX_JSON}); "
+        f"the same command resumes them: {prog} {' '.join(argv)}"
+    )
+
+
+def _run_command(args, prog: str) -> int:
+    spec = load_sweep(args.sweep, max_members=args.max_members)
+    security = _security(args)
+    with _Stop() as stop:
+        try:
+            outcome = run_sweep(
+                spec,
+                args.out,
+                scheduler=args.scheduler,
+                n_workers=args.n_workers,
+                overwrite=args.overwrite,
+                verbose=args.verbose,
+                say=(lambda _: None) if args.quiet else _say,
+                command=f"{prog} " + " ".join(args.argv),
+                security=security,
+                dashboard=args.dashboard,
+            )
+        except KeyboardInterrupt:
+            if args.debug:
+                raise
+            signum = stop.received or signal.SIGINT
+            print(_stopped_line(prog, spec, Path(args.out), signum, args.argv), file=sys.stderr)
+            return 128 + signum
     return 1 if outcome.failed else 0
+
+
+def _say(line: str) -> None:
+    """A progress line on stdout, flushed (a sweep's log is often a pipe or a file)."""
+    print(line, flush=True)
 
 
 def _summarise_command(args) -> int:
@@ -371,8 +543,33 @@ def _parser(prog: str) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a sweep (the default: `SWEEP.toml --out DIR`)")
     run.add_argument("sweep", help="sweep TOML file ([sweep] scene, [sweep.grid], ...)")
-    run.add_argument("--out", required=True, help="sweep directory (members/<name>, index)")
-    run.add_argument("--scheduler", help="address of a running Dask scheduler (else a local one)")
+    run.add_argument(
+        "--out", required=True, type=_no_control_characters("--out"),
+        help="sweep directory (members/<name>, index)",
+    )  # fmt: skip
+    run.add_argument(
+        "--scheduler", type=_no_control_characters("--scheduler"),
+        help="address of a running Dask scheduler (else a local one on 127.0.0.1). Anyone who "
+        "can reach a scheduler's port can run any code as its workers' user: keep it on "
+        "127.0.0.1 or a trusted network, or use tls:// with --tls-ca-file/--tls-cert",
+    )  # fmt: skip
+    for flag, what in (
+        ("--tls-ca-file", "CA certificate (PEM) that signed the scheduler's and the client's"),
+        ("--tls-cert", "this client's TLS certificate (PEM) for a tls:// --scheduler"),
+        ("--tls-key", "the key of --tls-cert (PEM), unless that file holds it"),
+    ):
+        run.add_argument(flag, type=_no_control_characters(flag), default=None, help=what)
+    run.add_argument(
+        "--dashboard", type=_no_control_characters("--dashboard"), default=None,
+        metavar="ADDRESS",
+        help="serve Dask's dashboard of the local cluster at ADDRESS, e.g. 127.0.0.1:8787 "
+        "(default: no dashboard, no HTTP route at all)",
+    )  # fmt: skip
+    run.add_argument(
+        "--max-members", type=int_in_range(1), default=MAX_MEMBERS,
+        help=f"the most members the sweep file may make (default {MAX_MEMBERS:,}): a larger "
+        "grid is refused with its size before anything is built",
+    )  # fmt: skip
     run.add_argument(
         "--n-workers", type=int_in_range(1), default=None,
         help="worker processes of the local cluster (default: cores / the sweep's workers)",

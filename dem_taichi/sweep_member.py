@@ -28,9 +28,19 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from dem_taichi.sweep_spec import Member, SweepError
+from dem_taichi.sweep_spec import Member, SweepError, check_member_name
 
-__all__ = ["MEMBER_RECORD", "TOPIC", "member_dir", "run_member", "read_json", "write_json", "now"]
+__all__ = [
+    "MEMBER_RECORD",
+    "TOPIC",
+    "member_dir",
+    "checked_member_dir",
+    "can_resume",
+    "run_member",
+    "read_json",
+    "write_json",
+    "now",
+]
 
 MEMBER_RECORD = "member.json"
 TOPIC = "dem_taichi.sweep"
@@ -58,8 +68,47 @@ def read_json(path: Path) -> dict | None:
 
 
 def member_dir(out: str | Path, name: str) -> Path:
-    """The run directory of member ``name`` of the sweep in ``out``."""
-    return Path(out) / "members" / name
+    """The run directory of member ``name`` of the sweep in ``out`` (``name`` checked by
+    :func:`dem_taichi.sweep_spec.check_member_name`: no path separator, not ``..``)."""
+    return Path(out) / "members" / check_member_name(name, "member")
+
+
+def checked_member_dir(out: str | Path, name: str) -> Path:
+    """:func:`member_dir`, resolved (symbolic links followed) and checked to be the folder
+    ``<name>`` directly in ``out/members``; :class:`SweepError` otherwise. Called before
+    anything in a member's folder is written or deleted: a link (of the member's folder, or
+    of ``members``) must not make a re-run delete another folder."""
+    folder = member_dir(out, name)
+    resolved = folder.resolve()
+    expected = Path(out).resolve() / "members" / name
+    if resolved != expected:
+        raise SweepError(
+            f"member {name}: its folder {folder} resolves to {resolved}, not inside the sweep "
+            f"folder {expected.parent}: refusing to write or delete there (a symbolic link?)"
+        )
+    return resolved
+
+
+def _check_run_dir(out: Path, name: str, sweep_dir: str) -> Path:
+    """The member's run directory ``out``, resolved and checked before anything in it is
+    deleted: ``<sweep_dir>/members/<name>`` when ``sweep_dir`` is given, else at least a
+    folder named ``name`` in a folder named ``members``."""
+    resolved = out.resolve()
+    if sweep_dir:
+        expected = checked_member_dir(sweep_dir, name)
+        if resolved != expected:
+            raise SweepError(
+                f"member {name}: run directory {out} resolves to {resolved}, not {expected}: "
+                "refusing to write or delete there"
+            )
+        return resolved
+    check_member_name(name, "member")
+    if resolved.name != name or resolved.parent.name != "members":
+        raise SweepError(
+            f"member {name}: run directory {out} resolves to {resolved}, not .../members/{name}: "
+            "refusing to write or delete there"
+        )
+    return resolved
 
 
 class _ProgressStream(io.TextIOBase):
@@ -100,14 +149,15 @@ def _publisher(name: str, folder: str = ""):
     return publish
 
 
-def _resumable(out: Path, scene_sha256: str) -> bool:
+def can_resume(out: Path, scene_sha256: str) -> bool:
     """Whether the unfinished member run in ``out`` can resume: its protocol saved state A
-    (:mod:`dem_taichi.protocol_resume`) and its run record holds this member's scene."""
-    from dem_taichi.protocol_resume import RESUME_DIR
+    (:func:`dem_taichi.protocol_resume.stage_a_file`) and its run record holds this member's
+    scene."""
+    from dem_taichi.protocol_resume import stage_a_file
 
     record = read_json(out / "run.json")
     return (
-        (out / RESUME_DIR / "A.pkl").exists()
+        stage_a_file(out).exists()
         and record is not None
         and record.get("scene_sha256") == scene_sha256
     )
@@ -121,6 +171,7 @@ def run_member(
     precision: str = "f64",
     workers: int = 1,
     command: str = "dem_taichi.sweep",
+    sweep_dir: str = "",
 ) -> dict:
     """Run one member's protocol into ``run_dir`` (on a Dask worker, or anywhere).
 
@@ -130,12 +181,14 @@ def run_member(
     Returns the member record written to ``run_dir/member.json``: status ``done`` or
     ``failed`` (with ``error``, one line, and ``traceback``), ``seconds``, ``worker``,
     ``started``, ``finished``, ``resumed``. Never raises for a failure of the run itself.
+    ``run_dir`` must resolve to ``<sweep_dir>/members/<name>`` (or, without ``sweep_dir``, to a
+    folder ``name`` in a folder ``members``): :class:`SweepError` before anything is deleted.
     """
     from dem_taichi.config import scene_from_toml
     from dem_taichi.protocol import run_protocol
 
-    publish = _publisher(name, str(Path(run_dir).resolve()))
-    out = Path(run_dir)
+    out = _check_run_dir(Path(run_dir), name, sweep_dir)
+    publish = _publisher(name, str(out))
     with _MEMBER_LOCK:
         old = read_json(out / MEMBER_RECORD)
         sha = Member(name, {}, {}, scene_toml).scene_sha256
@@ -143,7 +196,7 @@ def run_member(
         if out.exists() and any(out.iterdir()):
             if old is None or old.get("status") == "done":
                 raise SweepError(f"{out} holds a run this sweep did not leave unfinished")
-            resume = _resumable(out, sha)
+            resume = can_resume(out, sha)
             if not resume:
                 shutil.rmtree(out)
         out.mkdir(parents=True, exist_ok=True)

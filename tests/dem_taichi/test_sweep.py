@@ -149,7 +149,7 @@ def test_plan_reruns_unfinished_and_failed_members_and_refuses_changed_ones(tmp_
     to_run, skipped, why = _plan(spec, tmp_path, overwrite=False)
     assert [m.name for m in to_run] == [running.name, failed.name, fresh.name]
     assert skipped == [done.name]
-    assert "no resume from checkpoints" in why[running.name]
+    assert why[running.name] == "unfinished; it had not saved state A: runs again from the gas"
     assert "failed before (ProtocolError: x)" in why[failed.name]
     changed = sweep_from_toml(
         '[sweep]\nscene = "smoke"\n[sweep.set]\n"contact.mu" = 0.3\n[sweep.grid]\n'
@@ -302,13 +302,13 @@ def test_unfinished_member_resumes_from_its_saved_state_a(tmp_path, monkeypatch)
     monkeypatch.setattr(branches, "run_branch_on", fail_at_k0)
     first = run_member(member.name, member.scene_toml, str(out))
     assert first["status"] == "failed" and "made to fail" in first["error"]
-    assert (out / "resume" / "A.pkl").exists() and (out / "resume" / "branch_0.pkl").exists()
-    a_saved = (out / "resume" / "A.pkl").stat().st_mtime_ns
+    assert (out / "resume" / "A.npz").exists() and (out / "resume" / "branch_0.npz").exists()
+    a_saved = (out / "resume" / "A.npz").stat().st_mtime_ns
 
     monkeypatch.setattr(branches, "run_branch_on", original)
     second = run_member(member.name, member.scene_toml, str(out))
     assert second["status"] == "done" and second["resumed"] is True
-    assert (out / "resume" / "A.pkl").stat().st_mtime_ns == a_saved  # A was not run again
+    assert (out / "resume" / "A.npz").stat().st_mtime_ns == a_saved  # A was not run again
     assert (
         "[resume] from state A; branches done: isotropic; to run: k0"
         in (out / "progress.log").read_text()
