@@ -34,7 +34,16 @@ def interrupted(tmp_path_factory):
             run_protocol(smoke_protocol_scene(), out)
     finally:
         branches.run_branch_on = original
+    _release_runs()
     return out
+
+
+def _release_runs() -> None:
+    """Free the run directories held by the frames of caught exceptions, as the end of a
+    process would: their locks (if the run directory takes one) are released."""
+    import gc
+
+    gc.collect()
 
 
 def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
@@ -54,6 +63,7 @@ def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
     from dem_taichi.protocol import run_protocol
 
     result = run_protocol(smoke_protocol_scene(), interrupted, resume=True)
+    _release_runs()
     assert (interrupted / "summary.json").exists()
     assert list(result.states) == ["A", "B", "C", "B'", "R1_end"]
     _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
@@ -62,6 +72,7 @@ def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
 def test_resume_refuses_another_scene_and_a_directory_without_a_run(tmp_path, interrupted):
     from dem_taichi.protocol import run_protocol
 
+    _release_runs()
     other = smoke_protocol_scene(path_increments=3)
     with pytest.raises(RunDirectoryError, match="is not the scene of run"):
         run_protocol(other, interrupted, resume=True)
@@ -91,15 +102,27 @@ def test_command_line_resume_of_nothing_is_one_line(tmp_path):
     assert "holds no run to continue" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_resume_in_worker_processes_merges_saved_and_new_branches(interrupted):
-    """With workers=2 the missing branches run in spawned processes and merge in their place
-    among the saved ones: the outputs again equal the reference bit for bit."""
+def test_a_moved_run_folder_resumes_in_worker_processes(interrupted, tmp_path):
+    """The run folder moved elsewhere, a decoy left where it was (a reused folder whose
+    ``state_A.npz`` is not this run's), and the missing branches run in spawned processes: they
+    read state A inside the moved folder, merge in their place among the saved ones, and the
+    outputs again equal the reference bit for bit."""
+    import shutil
+
     from dem_taichi.protocol import run_protocol
 
     for index in (1, 2):
         (interrupted / "resume" / f"branch_{index}.npz").unlink(missing_ok=True)
-    result = run_protocol(smoke_protocol_scene(), interrupted, resume=True, workers=2)
-    assert (interrupted / "resume" / "branch_2.npz").exists()
+    _release_runs()
+    moved = tmp_path / "moved"
+    shutil.copytree(interrupted, moved)
+    shutil.rmtree(interrupted)
+    interrupted.mkdir()
+    (interrupted / "state_A.npz").write_bytes(b"a file of another run, not a checkpoint")
+    result = run_protocol(smoke_protocol_scene(), moved, resume=True, workers=2)
+    assert (moved / "resume" / "branch_2.npz").exists()
+    assert result.files["state_A"] == str(moved / "state_A.npz")
+    assert all(str(interrupted) not in path for path in result.files.values())
     _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
 
 
