@@ -380,8 +380,9 @@ def _take_over_if_stale(folder: Path, path: Path, held: dict) -> None:
         )
     if held.get("host") != here:
         raise RunLockedError(
-            f"{folder} is locked by {path}: {_describe_lock(held)}, another host, so it cannot "
-            "be checked from here; if that run is gone, delete the lock"
+            f"{folder} is locked by {path}, held by {_describe_lock(held)}, not this host "
+            f"({here}), so whether it still runs cannot be checked from here; if that run is "
+            "gone, delete the lock"
         )
     if _pid_alive(pid):
         raise RunLockedError(
