@@ -6,7 +6,10 @@ output folder). The rules (issue 22):
 - the command line refuses an ``--out`` that holds an earlier calibration (the manifest, or a
   file with a name the bridge writes: :data:`BRIDGE_PATTERNS`) unless ``--overwrite``; with it,
   the files the earlier manifest lists are deleted first (nothing else), so no stale output
-  (``prediction_radial_1.nc`` of a calibration with more radial paths) is left beside the new;
+  (``prediction_radial_1.nc`` of a calibration with more radial paths) is left beside the new.
+  ``--overwrite`` is refused where such files lie without a manifest (foreign, or written
+  before manifests): they would be replaced by name;
+- an empty ``--out`` is refused (it would mean the current folder);
 - ``--out`` must not be a DEM run folder (its ``run.json``): the bridge's ``report.md`` would
   replace the run's;
 - the bridge never writes through a symbolic link: an entry with a bridge output's name that is
@@ -217,8 +220,13 @@ def check_out(out_text: str, overwrite: bool) -> Path:
         )
     refuse_links(out)
     earlier = holds_outputs(out)
+    shown = ", ".join(earlier[:4]) + (", ..." if len(earlier) > 4 else "")
+    if earlier and overwrite and MANIFEST not in earlier:
+        raise OutputFolderError(
+            f"--out {out} holds {shown} but no {MANIFEST}, so whose they are is unknown and "
+            "--overwrite would replace them by name: move them away or choose a new --out"
+        )
     if earlier and not overwrite:
-        shown = ", ".join(earlier[:4]) + (", ..." if len(earlier) > 4 else "")
         raise OutputFolderError(
             f"--out {out} already holds an earlier calibration ({shown}); add --overwrite to "
             "replace it (the files its calibration_files.json lists are deleted first), or "
