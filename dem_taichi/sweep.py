@@ -44,10 +44,12 @@ import os
 import signal
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from dem_taichi.sweep_member import (
     MEMBER_RECORD,
@@ -255,6 +257,42 @@ def _cluster(
     return Client(cluster), cluster, where
 
 
+class _DeferredSignals:
+    """Holds SIGINT/SIGTERM back while the cluster starts (in the main thread only), then
+    :meth:`deliver` hands a signal received meanwhile to the handler it would have gone to."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._previous: dict[int, Any] = {}
+
+    def _record(self, signum: int, frame) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def __enter__(self) -> _DeferredSignals:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._record) for s in self.SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def deliver(self) -> None:
+        """Call the previous handler of the signal received while held back, if any."""
+        if self.received is None:
+            return
+        handler = self._previous.get(self.received)
+        if callable(handler):
+            handler(self.received, None)
+        elif handler == signal.SIG_DFL:
+            if self.received == signal.SIGINT:
+                raise KeyboardInterrupt
+            os.kill(os.getpid(), self.received)
+
+
 def run_sweep(
     spec: SweepSpec,
     out_dir: str | Path,
@@ -323,10 +361,13 @@ def run_sweep(
         elif msg.get("kind") == "line" and verbose:
             say(f"{stamp()}   {msg['member']}: {msg.get('text', '')}")
 
-    client, cluster, where = _cluster(
-        scheduler, n_workers, spec, len(to_run), security=security, dashboard=dashboard
-    )
+    deferred = _DeferredSignals()
+    with deferred:  # a cluster half started cannot be closed: its signal waits until it is up
+        client, cluster, where = _cluster(
+            scheduler, n_workers, spec, len(to_run), security=security, dashboard=dashboard
+        )
     try:
+        deferred.deliver()
         say(f"{stamp()} running on {where}")
         with contextlib.suppress(Exception):
             client.subscribe_topic(TOPIC, on_event)
@@ -479,12 +520,12 @@ def _stopped_line(prog: str, spec: SweepSpec, out: Path, signum: int, argv: list
     rows = []
     with contextlib.suppress(SweepError, OSError):
         rows = read_index(out)["members"]
-    status = [r.get("status") for r in rows]
-    unfinished = sum(s in ("running", "failed", "stale") for s in status)
+    done = [r.get("status") for r in rows].count("done")
+    total = len(spec.members)
     return (
-        f"{prog}: {signal.Signals(signum).name}: stopped; {status.count('done')} of "
-        f"{len(spec.members)} members done, {unfinished} unfinished (index {out / INDEX_JSON}); "
-        f"the same command resumes them: {prog} {' '.join(argv)}"
+        f"{prog}: {signal.Signals(signum).name}: stopped; {done} of {total} members done "
+        f"(index {out / INDEX_JSON}); the same command resumes the other {total - done}: "
+        f"{prog} {' '.join(argv)}"
     )
 
 

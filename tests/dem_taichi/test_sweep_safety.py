@@ -1,0 +1,290 @@
+"""Sweeps never delete outside their folder, refuse huge grids at once, stop cleanly on a
+signal and serve no HTTP routes unless asked (issue 22).
+
+The signal test runs the reduced smoke protocol of ``test_sweep.py`` (one member) and stops it
+as soon as the member has started: ~15 s on this 2-core machine.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from dem_taichi.sweep import _local_cluster, _plan, main
+from dem_taichi.sweep_member import checked_member_dir, run_member, write_json
+from dem_taichi.sweep_spec import (
+    MAX_MEMBERS,
+    Member,
+    SweepError,
+    SweepSpec,
+    check_member_name,
+    sweep_from_toml,
+)
+
+REDUCED = """
+[sweep.set]
+"protocol.path_increments" = 1
+"protocol.run_unloading" = false
+"protocol.radial_stress_ratios" = ""
+"probing.dynamic" = false
+"probing.states" = "A, B, C"
+"probing.every_n_increments" = 0
+"""
+SENTINEL = "SENTINEL.txt"
+
+
+def one_member(name: str) -> str:
+    return f'[sweep]\nscene = "smoke"\n[[sweep.members]]\nname = {json.dumps(name)}\n'
+
+
+# -- names -------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "name",
+    ["..", ".", "", "a/b", "/abs", "a\\b", "../x", "x" * 121, "white space", "tab\tname", "é"],
+    ids=["dotdot", "dot", "empty", "slash", "absolute", "backslash", "up", "long", "space",
+         "tab", "non-ascii"],
+)  # fmt: skip
+def test_unsafe_member_names_are_refused_at_load(name):
+    with pytest.raises(SweepError) as raised:
+        sweep_from_toml(one_member(name))
+    message = str(raised.value)
+    assert message.startswith("[[sweep.members]] #1 name = ")
+    assert "A-Z a-z 0-9 - _ . = +" in message and "not '.' or '..'" in message
+    assert "\n" not in message
+
+
+@pytest.mark.parametrize("name", ["seed-1", "k_t=2e4", "a+b", ".hidden", "x" * 120, "..."])
+def test_safe_member_names_are_kept(name):
+    assert check_member_name(name, "m") == name
+
+
+def test_a_generated_name_too_long_is_refused_naming_the_member():
+    values = ", ".join(f'"{"v" * 120}{i}"' for i in range(2))
+    text = f'[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.description" = [{values}]\n'
+    with pytest.raises(SweepError, match=r"member \(scene.description = 'v{120}0'\): name"):
+        sweep_from_toml(text)
+
+
+# -- nothing outside the sweep folder is ever deleted -----------------------------------------
+def failed_record(folder: Path, member: Member) -> None:
+    write_json(folder / "member.json", {"status": "failed", "error": "ProtocolError: x",
+                                        "scene_sha256": member.scene_sha256})  # fmt: skip
+
+
+def test_the_dotdot_member_of_the_issue_is_refused_before_anything_is_deleted(tmp_path):
+    """The issue's case: a member named ``..`` whose first run failed left ``member.json`` in
+    the sweep folder itself; the re-run deleted the whole --out. Now the name is refused by the
+    command line, and the functions that delete refuse it too when given it directly."""
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / SENTINEL).write_text("keep me")
+    good = sweep_from_toml(one_member("fine")).members[0]
+    dotdot = Member("..", good.overrides, good.parameters, good.scene_toml)
+    failed_record(out, dotdot)  # what the first run wrote to members/../member.json
+    (tmp_path / "s.toml").write_text(one_member(".."))
+    assert main([str(tmp_path / "s.toml"), "--out", str(out)]) == 2
+    spec = SweepSpec(name="s", scene="smoke", members=(dotdot,))
+    with pytest.raises(SweepError, match="name = '..'"):
+        _plan(spec, out, overwrite=False)
+    with pytest.raises(SweepError, match="name = '..'"):
+        run_member("..", dotdot.scene_toml, str(out / "members" / ".."), sweep_dir=str(out))
+    with pytest.raises(SweepError):
+        run_member("..", dotdot.scene_toml, str(out / "members" / ".."))
+    assert (out / SENTINEL).read_text() == "keep me"
+
+
+def test_a_member_folder_linked_elsewhere_is_never_deleted(tmp_path):
+    out, elsewhere = tmp_path / "sweep", tmp_path / "precious"
+    elsewhere.mkdir()
+    (elsewhere / SENTINEL).write_text("keep me")
+    member = sweep_from_toml(one_member("m1")).members[0]
+    failed_record(elsewhere, member)
+    (out / "members").mkdir(parents=True)
+    (out / "members" / "m1").symlink_to(elsewhere, target_is_directory=True)
+    spec = SweepSpec(name="s", scene="smoke", members=(member,))
+    with pytest.raises(SweepError, match="resolves to .*precious.*symbolic link"):
+        _plan(spec, out, overwrite=False)
+    with pytest.raises(SweepError, match="resolves to"):
+        run_member("m1", member.scene_toml, str(out / "members" / "m1"), sweep_dir=str(out))
+    with pytest.raises(SweepError, match="not .*members/m1"):
+        run_member("m1", member.scene_toml, str(elsewhere))  # not in a members folder
+    assert (elsewhere / SENTINEL).read_text() == "keep me"
+    assert json.loads((elsewhere / "member.json").read_text())["status"] == "failed"
+
+
+def test_a_linked_members_folder_is_refused(tmp_path):
+    out, elsewhere = tmp_path / "sweep", tmp_path / "other"
+    (elsewhere / "m1").mkdir(parents=True)
+    (elsewhere / "m1" / SENTINEL).write_text("keep me")
+    out.mkdir()
+    (out / "members").symlink_to(elsewhere, target_is_directory=True)
+    with pytest.raises(SweepError, match="not inside the sweep folder"):
+        checked_member_dir(out, "m1")
+    assert (elsewhere / "m1" / SENTINEL).exists()
+
+
+# -- size ----------------------------------------------------------------------------------------
+def test_a_grid_of_a_hundred_million_members_is_refused_at_once(tmp_path, capsys):
+    values = "[" + ", ".join(str(i) for i in range(100)) + "]"
+    floats = "[" + ", ".join(f"0.{i:03d}" for i in range(1, 101)) + "]"
+    text = (
+        f'[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = {values}\n'
+        f'"contact.mu" = {floats}\n"particles.n_rods" = {values.replace("[0, ", "[100, ")}\n'
+        f'"output.every" = {values.replace("[0, ", "[100, ")}\n'
+    )
+    start = time.perf_counter()
+    with pytest.raises(SweepError) as raised:
+        sweep_from_toml(text)
+    assert time.perf_counter() - start < 2.0
+    assert "makes 100,000,000 members (100 × 100 × 100 × 100)" in str(raised.value)
+    assert f"allowed at most {MAX_MEMBERS:,}" in str(raised.value)
+    (tmp_path / "big.toml").write_text(text)
+    start = time.perf_counter()
+    assert main([str(tmp_path / "big.toml"), "--out", str(tmp_path / "o")]) == 2
+    assert time.perf_counter() - start < 2.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "100,000,000 members" in err[0] and "--max-members" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_member_limit_counts_listed_members_and_can_be_raised():
+    text = '[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = [1, 2, 3]\n' + "".join(
+        f'[[sweep.members]]\nname = "m{i}"\n' for i in range(2)
+    )
+    with pytest.raises(SweepError, match=r"makes 6 members \(3 × 2 \[\[sweep.members\]\]\)"):
+        sweep_from_toml(text, max_members=5)
+    assert len(sweep_from_toml(text, max_members=6).members) == 6
+
+
+# -- signals -------------------------------------------------------------------------------------
+def start_sweep(sweep_file: Path, out: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "dem_taichi.sweep", str(sweep_file), "--out", str(out),
+         "--n-workers", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=sweep_file.parent,
+    )  # fmt: skip
+
+
+def wait_for_line(process: subprocess.Popen, words: str, timeout: float = 120.0) -> list[str]:
+    """stdout lines up to the first holding ``words`` (fails on exit or timeout)."""
+    lines, deadline = [], time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            pytest.fail(f"sweep exited before {words!r}: {lines} {process.stderr.read()}")
+        lines.append(line.rstrip("\n"))
+        if words in line:
+            return lines
+    pytest.fail(f"no {words!r} in {timeout} s: {lines}")
+
+
+def test_sigterm_prints_one_line_and_the_rerun_resumes(tmp_path):
+    sweep_file, out = tmp_path / "one.toml", tmp_path / "sweep"
+    sweep_file.write_text(
+        '[sweep]\nname = "one"\nscene = "smoke"\n' + REDUCED + '[sweep.grid]\n"scene.seed" = [1]\n'
+    )
+    first = start_sweep(sweep_file, out)
+    try:
+        wait_for_line(first, "seed-1: started")
+        first.send_signal(signal.SIGTERM)
+        _, err = first.communicate(timeout=60)
+    finally:
+        first.kill()
+    assert first.returncode == 128 + signal.SIGTERM, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("python -m dem_taichi.sweep: SIGTERM: stopped; 0 of 1 members")
+    assert "the same command resumes the other 1: python -m dem_taichi.sweep" in lines[0]
+    record = json.loads((out / "members" / "seed-1" / "member.json").read_text())
+    assert record["status"] == "running"  # left for the re-run, not marked done or deleted
+
+    again = start_sweep(sweep_file, out)
+    try:
+        said = wait_for_line(again, "seed-1: ")
+        again.send_signal(signal.SIGTERM)  # stopped again, while its cluster starts
+        _, err = again.communicate(timeout=60)
+    finally:
+        again.kill()
+    assert said[0] == (
+        "sweep one: resuming: 0 of 1 members done before (skipped), 1 to run (1 unfinished, "
+        "0 failed, 0 changed, 0 not started)"
+    )
+    assert said[1].startswith("  seed-1: unfinished; ")
+    assert ("resumes from its saved state A" in said[1]) or ("runs again from the gas" in said[1])
+    assert "from scratch" not in "\n".join(said)
+    assert again.returncode == 128 + signal.SIGTERM and len(err.strip().splitlines()) == 1
+
+
+# -- no dashboard --------------------------------------------------------------------------------
+def http_status(port: int, path: str) -> int | str:
+    try:
+        return urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=5).status
+    except urllib.error.HTTPError as error:
+        return error.code
+    except OSError as error:
+        return type(error).__name__
+
+
+def port_8787_taken() -> bool:
+    with socket.socket() as probe:
+        return probe.connect_ex(("127.0.0.1", 8787)) == 0
+
+
+def test_the_local_cluster_serves_no_dashboard_unless_asked():
+    from distributed import Client
+
+    taken_before = port_8787_taken()
+    cluster = _local_cluster(1, None)
+    try:
+        http = cluster.scheduler.http_server.port
+        assert http != 8787
+        if not taken_before:
+            assert not port_8787_taken()
+        for path in ("/status", "/json/identity.json", "/info/main/workers.html", "/health"):
+            assert http_status(http, path) == 404, path
+        with Client(cluster) as client:
+            (worker,) = client.scheduler_info()["workers"].values()
+            assert http_status(worker["services"]["dashboard"], "/metrics") == 404
+    finally:
+        cluster.close()
+    asked = _local_cluster(0, "127.0.0.1:0")
+    try:
+        assert http_status(asked.scheduler.http_server.port, "/status") == 200
+    finally:
+        asked.close()
+
+
+# -- the scheduler's TLS options -----------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--scheduler", "tls://h:8786"], "--scheduler tls://h:8786 is a TLS address"),
+        (["--tls-ca-file", "ca.pem"], "apply to --scheduler only"),
+        (["--scheduler", "tls://h:8786", "--tls-cert", "c.pem"], "need --tls-ca-file"),
+        (["--scheduler", "tls://h:8786", "--tls-ca-file", "none.pem", "--tls-cert", "c.pem"],
+         "--tls-ca-file none.pem: no such file"),
+        (["--scheduler", "tcp://h:8786", "--tls-ca-file", "c.pem", "--tls-cert", "c.pem"],
+         "must start with tls://"),
+        (["--scheduler", "tcp://h:8786\nx"], "control character"),
+        (["--max-members", "0"], "--max-members"),
+    ],
+)  # fmt: skip
+def test_scheduler_options_are_checked_before_anything_runs(
+    extra, words, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.pem").write_text("not read before the checks")
+    (tmp_path / "s.toml").write_text(one_member("m1"))
+    assert main(["s.toml", "--out", "o", *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "o").exists()
