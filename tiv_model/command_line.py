@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import sys
 from collections.abc import Callable, Mapping, Sequence
 
@@ -40,6 +41,7 @@ __all__ = [
     "add_common_flags",
     "error_line",
     "disk_full_error",
+    "disk_full_while_writing",
     "run_command",
     "int_in_range",
     "positive_float",
@@ -100,6 +102,32 @@ def disk_full_error(error: BaseException) -> OSError | None:
             return current
         current = current.__cause__ or current.__context__
     return None
+
+
+#: Less space than this available where a write failed: the disk is taken to be full.
+FULL_DISK_BYTES = 1 << 20
+
+
+def disk_full_while_writing(error: BaseException, path: str | os.PathLike[str]) -> OSError | None:
+    """An ``OSError`` ENOSPC standing for ``error``, raised while writing ``path``, when the file
+    system of ``path`` has less than :data:`FULL_DISK_BYTES` available, else None.
+
+    netCDF4 (HDF5) reports a full disk as ``RuntimeError('NetCDF: HDF error')`` without the
+    errno: writers of netCDF files re-raise such an error as this one (``raise full from
+    error``) so that the command line gives the disk-full exit code.
+    """
+    found = disk_full_error(error)
+    if found is not None:
+        return found
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    try:
+        info = os.statvfs(folder)
+    except OSError:
+        return None
+    if info.f_bavail * info.f_frsize >= FULL_DISK_BYTES:
+        return None
+    reason = f"{os.strerror(errno.ENOSPC)} (the writer said: {_text(error)})"
+    return OSError(errno.ENOSPC, reason, os.fspath(path))
 
 
 def error_line(prog: str, error: BaseException, kind: str = "error") -> str:
