@@ -191,6 +191,55 @@ def _require(ds: xr.Dataset, names, what: str) -> None:
         )
 
 
+#: Variables read as labels (codes or text), not as numbers.
+LABEL_VARIABLES = ("stage", "path", "state_label")
+
+
+def check_layout(ds: xr.Dataset, names, what: str, matrices=()) -> str:
+    """The one record dimension of ``ds`` that the variables ``names`` share; :class:`SeriesError`
+    naming the variable and what is needed otherwise.
+
+    The bridge reads each of ``names`` as one value per record: present, 1-D along the same
+    non-empty dimension, and numeric (:data:`LABEL_VARIABLES` may also be text). Each of
+    ``matrices`` that is present must be (records, i, j) with i, j ≥ 2 (a 2D stiffness).
+    ``what`` names the file (e.g. "history h.nc") in the messages.
+    """
+    _require(ds, names, what)
+    dims = {name: ds[name].dims for name in names}
+    first = names[0]
+    for name, var_dims in dims.items():
+        if len(var_dims) != 1:
+            raise SeriesError(
+                f"{what} variable {name!r} has dimensions {var_dims}: the bridge needs one value "
+                f"per record, 1-D like {first!r} {dims[first]}"
+            )
+    dim = dims[first][0]
+    other = {name: d for name, d in dims.items() if d != (dim,)}
+    if other:
+        name, var_dims = next(iter(other.items()))
+        raise SeriesError(
+            f"{what} variable {name!r} is along {var_dims}, {first!r} along ({dim!r},): the "
+            "variables the bridge reads must share one record dimension"
+        )
+    if ds.sizes[dim] == 0:
+        raise SeriesError(f"{what} has no records (dimension {dim!r} is empty)")
+    for name in names:
+        kind = ds[name].dtype.kind
+        if kind not in "iuf" and not (name in LABEL_VARIABLES and kind in "OUS"):
+            raise SeriesError(
+                f"{what} variable {name!r} has type {ds[name].dtype}: the bridge needs numbers"
+            )
+    for name in matrices:
+        if name in ds.variables:
+            shape = ds[name].shape
+            if ds[name].dims[:1] != (dim,) or len(shape) != 3 or min(shape[1:]) < 2:
+                raise SeriesError(
+                    f"{what} variable {name!r} has dimensions {ds[name].dims} {shape}: the "
+                    f"bridge needs ({dim!r}, i, j) with i, j >= 2 (a 2D stiffness per record)"
+                )
+    return dim
+
+
 def _stage_labels(history: xr.Dataset) -> np.ndarray:
     if "stage_label" in history.coords or "stage_label" in history.variables:
         return np.asarray(history["stage_label"].values, dtype=object).astype(str)
@@ -209,7 +258,7 @@ def path_indices(history: xr.Dataset, path: str) -> np.ndarray:
     """Record indices (along the history's dimension) of a path, its start state first."""
     if path not in PATHS:
         raise SeriesError(f"unknown path {path!r}; allowed: {sorted(PATHS)}")
-    _require(history, ("stage",), "history")
+    check_layout(history, ("stage",), "history")
     labels = _stage_labels(history)
     stage, start_stage = PATHS[path]
     records = np.flatnonzero(labels == stage)
@@ -271,10 +320,9 @@ def path_series(history: xr.Dataset, path: str, convention: Convention) -> xr.Da
     ``history`` has the history schema (``relaxed_states.nc`` holds only relaxed path states,
     the full ``history.nc`` also the loading records in between).
     """
-    _require(history, HISTORY_REQUIRED, "history")
+    dim = check_layout(history, HISTORY_REQUIRED, "history")
     history = checked(history, HISTORY_REQUIRED, convention.stress_scale_kpa, "history")
     idx = path_indices(history, path)
-    dim = history["stress_xx"].dims[0]
 
     def take(name):
         return np.asarray(history[name].isel({dim: idx}).values, dtype=float)
@@ -310,7 +358,7 @@ RADIAL_STAGE = "radial"
 def radial_indices(history: xr.Dataset) -> list[np.ndarray]:
     """Record indices of each radial path, state A first: the ``radial`` records split where
     the mean stress falls (every radial path starts from A and loads in p)."""
-    _require(history, ("stage", "stress_xx", "stress_yy"), "history")
+    check_layout(history, ("stage", "stress_xx", "stress_yy"), "history")
     labels = _stage_labels(history)
     records = np.flatnonzero(labels == RADIAL_STAGE)
     if records.size == 0:
@@ -328,9 +376,8 @@ def radial_series(history: xr.Dataset, convention: Convention) -> dict[str, xr.D
     """Model series of every radial path of a DEM history, named ``radial_1``, ``radial_2``…
     in the order of the records, with their DEM and model stress ratios (of the last state)
     in the attributes ``dem_stress_ratio`` and ``stress_ratio``; {} when there are none."""
-    _require(history, HISTORY_REQUIRED, "history")
+    dim = check_layout(history, HISTORY_REQUIRED, "history")
     history = checked(history, HISTORY_REQUIRED, convention.stress_scale_kpa, "history")
-    dim = history["stress_xx"].dims[0]
     out = {}
     for k, idx in enumerate(radial_indices(history), start=1):
 
@@ -365,7 +412,8 @@ def probe_series(
     if path not in PATHS:
         raise SeriesError(f"unknown path {path!r}; allowed: {sorted(PATHS)}")
     moduli = (f"e_oed_v_{method}", f"e_oed_h_{method}")
-    _require(probes, PROBES_REQUIRED + moduli, "probes dataset")
+    names = PROBES_REQUIRED + moduli + (("state_label",) if "state_label" in probes else ())
+    dim = check_layout(probes, names, "probes dataset", matrices=("stiffness_tensor_linear",))
     read = PROBES_REQUIRED + moduli + ("stiffness_tensor_linear",)
     probes = checked(probes, read, convention.stress_scale_kpa, "probes")
     labels = np.asarray(probes["path"].values, dtype=object).astype(str)
@@ -388,7 +436,7 @@ def probe_series(
         )
 
     def take(name):
-        return np.asarray(probes[name].isel(probe=idx).values, dtype=float)
+        return np.asarray(probes[name].isel({dim: idx}).values, dtype=float)
 
     values = _state_values(
         take("stress_yy"),
@@ -400,7 +448,7 @@ def probe_series(
     values["e_oed_v"] = convention.model_modulus(take(moduli[0]))
     values["e_oed_h"] = convention.model_modulus(take(moduli[1]))
     if method == "linear" and "stiffness_tensor_linear" in probes.variables:
-        tensor = np.asarray(probes["stiffness_tensor_linear"].isel(probe=idx).values, dtype=float)
+        tensor = np.asarray(probes["stiffness_tensor_linear"].isel({dim: idx}).values, dtype=float)
         values["e_cross"] = convention.model_modulus(0.5 * (tensor[:, 0, 1] + tensor[:, 1, 0]))
     keep = np.isfinite(values["e_oed_v"]) & np.isfinite(values["e_oed_h"])
     keep &= np.isfinite(values["mean_stress"]) & (values["mean_stress"] > 0)

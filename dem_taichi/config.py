@@ -370,7 +370,8 @@ def tangential_stiffness_limit(dt_safety: float) -> float:
 
 
 def _check_tangential_stiffness(scene: Scene) -> None:
-    """Refuse a tangential spring too stiff for the time step (:func:`tangential_stiffness_limit`)."""
+    """Refuse a tangential spring too stiff for the time step
+    (:func:`tangential_stiffness_limit`)."""
     c, dt_safety = scene.contact, scene.integration.dt_safety
     limit = tangential_stiffness_limit(dt_safety)
     if c.k_t > limit * c.k_n:

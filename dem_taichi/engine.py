@@ -48,6 +48,7 @@ measured response; the engine has no servo of its own.
 from __future__ import annotations
 
 import math
+import numbers
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -83,6 +84,23 @@ __all__ = [
     "BlowUpError",
     "CapacityError",
 ]
+
+
+def step_count(name: str, value: Any, low: int) -> int:
+    """``value`` as a number of steps >= ``low``: an integer (numpy's too), or a float with a
+    whole value such as ``1e4``; a ``ValueError`` naming ``name`` otherwise (NaN, inf, 2.5, a
+    bool or a string would make :meth:`Simulation.run` do nothing, or loop, without a word)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r}: must be an integer >= {low}")
+    if isinstance(value, numbers.Integral):
+        count = int(value)
+    elif math.isfinite(value) and float(value).is_integer():
+        count = int(value)
+    else:
+        raise ValueError(f"{name} = {value!r}: must be a whole number of steps >= {low}")
+    if count < low:
+        raise ValueError(f"{name} = {value!r} is out of range: allowed integers >= {low}")
+    return count
 
 
 @dataclass(frozen=True)
@@ -412,12 +430,15 @@ class Simulation(SimulationViews, SimulationState):
         ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
         ``output_every`` steps (default ``[output] every``) and at the end.
         """
-        if n_steps < 0:
-            raise ValueError(f"n_steps must be >= 0, got {n_steps}")
+        n_steps = step_count("n_steps", n_steps, 0)
+        output_every = (
+            self.scene.output.every
+            if output_every is None
+            else step_count("output_every", output_every, 1)
+        )
         control = control or self._control
         self._control = control
         self._stage = control.stage
-        output_every = output_every or self.scene.output.every
         chunk = self.scene.integration.steps_per_call
         bar = None
         if progress:
