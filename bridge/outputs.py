@@ -38,6 +38,7 @@ __all__ = [
     "read_manifest",
     "refuse_links",
     "files_now",
+    "write_netcdf",
 ]
 
 MANIFEST = "calibration_files.json"
@@ -233,3 +234,18 @@ def check_out(out_text: str, overwrite: bool) -> Path:
             "choose a new --out"
         )
     return out
+
+
+def write_netcdf(ds, path: Path) -> Path:
+    """``ds.to_netcdf(path)``; netCDF4's "HDF error" on a full disk is raised again as
+    ``OSError`` ENOSPC naming ``path`` (the command line's disk-full exit code)."""
+    from tiv_model.command_line import disk_full_while_writing
+
+    try:
+        ds.to_netcdf(path)
+    except RuntimeError as error:
+        full = disk_full_while_writing(error, path)
+        if full is None:
+            raise
+        raise full from error
+    return path

@@ -52,7 +52,15 @@ from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
 from .figures import PANELS, write_figures
 from .identifiability import identifiability
-from .outputs import MANIFEST, Outputs, check_out, files_now, read_manifest, refuse_links
+from .outputs import (
+    MANIFEST,
+    Outputs,
+    check_out,
+    files_now,
+    read_manifest,
+    refuse_links,
+    write_netcdf,
+)
 from .predict import predict_paths, predict_probes, summary
 from .replicas import calibrate_replicas
 from .report import report_markdown, write_report
@@ -248,12 +256,10 @@ def calibrate_from_results(
     model_probes = predict_probes(result, probes, model_options) if probes else {}
     files: dict[str, str] = {}
     for path, ds in runs.items():
-        target = outputs.path(f"prediction_{path}.nc")
-        ds.to_netcdf(target)
+        target = write_netcdf(ds, outputs.path(f"prediction_{path}.nc"))
         files[f"prediction_{path}"] = str(target)
     for path, ds in model_probes.items():
-        target = outputs.path(f"prediction_probes_{path}.nc")
-        ds.to_netcdf(target)
+        target = write_netcdf(ds, outputs.path(f"prediction_probes_{path}.nc"))
         files[f"prediction_probes_{path}"] = str(target)
     figures = {}
     if options.figures:
@@ -358,8 +364,8 @@ def synthetic_inputs(
     outputs = Outputs(out) if outputs is None else outputs
     history = outputs.path("synthetic_relaxed_states.nc")
     probes = outputs.path("synthetic_probes.nc")
-    syn.history.to_netcdf(history)
-    syn.probes.to_netcdf(probes)
+    write_netcdf(syn.history, history)
+    write_netcdf(syn.probes, probes)
     return history, probes, truth
 
 

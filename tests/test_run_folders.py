@@ -477,3 +477,25 @@ def test_a_full_disk_behind_another_error_is_still_exit_code_4(capsys):
 
     assert run_command("prog", body, []) == 4
     assert "disk full: h.nc" in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize(("available", "code"), [(0, 4), (10 << 30, 1)])
+def test_a_netcdf_hdf_error_on_a_full_disk_is_exit_code_4(tmp_path, monkeypatch, capsys,
+                                                          available, code):  # fmt: skip
+    """netCDF4 reports a full disk as "NetCDF: HDF error" without an errno: it counts as a full
+    disk only when the file system has (almost) no space left."""
+    import types
+
+    import xarray as xr
+
+    def hdf_error(*args, **kwargs):
+        raise RuntimeError("NetCDF: HDF error")
+
+    space = types.SimpleNamespace(f_bavail=available // 4096, f_frsize=4096)
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", hdf_error)
+    monkeypatch.setattr(os, "statvfs", lambda path: space)
+    target = tmp_path / "iso.nc"
+    assert tiv("isotropic", "--p-max", "50", "--increments", "3", "--out", str(target)) == code
+    line = one_line(capsys.readouterr().err)
+    assert ("disk full" in line) == (code == 4) and "HDF error" in line
+    assert not target.exists()

@@ -38,6 +38,7 @@ from .command_line import (
     ArgumentParser,
     UsageError,
     add_common_flags,
+    disk_full_while_writing,
     int_in_range,
     positive_float,
     run_command,
@@ -248,7 +249,13 @@ def _write_replacing(ds, target: Path) -> None:
     followed."""
     temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     try:
-        ds.to_netcdf(temporary)
+        try:
+            ds.to_netcdf(temporary)
+        except RuntimeError as error:  # netCDF4 says "HDF error" when the disk is full
+            full = disk_full_while_writing(error, target)
+            if full is None:
+                raise
+            raise full from error
         os.replace(temporary, target)
     finally:
         temporary.unlink(missing_ok=True)

@@ -93,7 +93,7 @@ def _text(error: BaseException) -> str:
 
 
 def disk_full_error(error: BaseException) -> OSError | None:
-    """The ``OSError`` ENOSPC/EDQUOT behind ``error`` (itself, its cause or its context), or None."""
+    """The ``OSError`` ENOSPC/EDQUOT behind ``error`` (itself, its cause or context), or None."""
     seen: set[int] = set()
     current: BaseException | None = error
     while current is not None and id(current) not in seen:

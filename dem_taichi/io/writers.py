@@ -23,10 +23,11 @@ Formats (all written by the ``netCDF4`` library, all read by xarray's ``netcdf4`
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -113,6 +114,22 @@ def _check_history_variables(variables: Iterable[Variable]) -> dict[str, Variabl
     return by_name
 
 
+@contextlib.contextmanager
+def _full_disk_reported(path: Path) -> Iterator[None]:
+    """netCDF4 (HDF5) reports a full disk as ``RuntimeError('NetCDF: HDF error')``: raise it
+    again as ``OSError`` ENOSPC naming ``path`` when the disk is full, so that the command lines
+    give their disk-full exit code (:mod:`tiv_model.command_line`)."""
+    try:
+        yield
+    except RuntimeError as error:
+        from tiv_model.command_line import disk_full_while_writing
+
+        full = disk_full_while_writing(error, path)
+        if full is None:
+            raise
+        raise full from error
+
+
 def _create_history_file(
     path: Path,
     variables: Mapping[str, Variable],
@@ -120,24 +137,36 @@ def _create_history_file(
     file_format: str,
     chunk_records: int,
 ) -> netCDF4.Dataset:
-    dataset = netCDF4.Dataset(path, "w", format=file_format)
+    with _full_disk_reported(path):
+        dataset = netCDF4.Dataset(path, "w", format=file_format)
     chunking = {"chunksizes": (chunk_records,)} if file_format == "NETCDF4" else {}
     try:
-        dataset.createDimension("time", None)
-        for var in variables.values():
-            # CF 2.5.1: no _FillValue on a coordinate variable (``time``, always given); the
-            # netCDF default fill still pre-fills it, without the attribute.
-            fill = None if _is_coordinate(var) else var.fill_value
-            ncvar = dataset.createVariable(
-                var.name, var.numpy_dtype, var.dims, fill_value=fill, **chunking
-            )
-            ncvar.setncatts(var.attrs())
-        dataset.setncatts(dict(attrs))
-        dataset.sync()
+        with _full_disk_reported(path):
+            _define_history(dataset, variables, attrs, chunking)
     except BaseException:
         dataset.close()
         raise
     return dataset
+
+
+def _define_history(
+    dataset: netCDF4.Dataset,
+    variables: Mapping[str, Variable],
+    attrs: Mapping[str, Any],
+    chunking: Mapping[str, Any],
+) -> None:
+    """The dimension, variables and attributes of a new history file, synced."""
+    dataset.createDimension("time", None)
+    for var in variables.values():
+        # CF 2.5.1: no _FillValue on a coordinate variable (``time``, always given); the
+        # netCDF default fill still pre-fills it, without the attribute.
+        fill = None if _is_coordinate(var) else var.fill_value
+        ncvar = dataset.createVariable(
+            var.name, var.numpy_dtype, var.dims, fill_value=fill, **chunking
+        )
+        ncvar.setncatts(var.attrs())
+    dataset.setncatts(dict(attrs))
+    dataset.sync()
 
 
 def _coerce(var: Variable, value: Any) -> Any:
@@ -292,10 +321,11 @@ class HistoryWriter:
         try:
             dataset = _create_history_file(temp, self.variables, merged, file_format, chunk_records)
             try:
-                for name, values in arrays.items():
-                    if n_keep:
-                        dataset.variables[name][:n_keep] = values[:n_keep]
-                dataset.sync()
+                with _full_disk_reported(self.path):
+                    for name, values in arrays.items():
+                        if n_keep:
+                            dataset.variables[name][:n_keep] = values[:n_keep]
+                    dataset.sync()
             finally:
                 dataset.close()
             os.chmod(temp, self.path.stat().st_mode & 0o777)
@@ -340,6 +370,11 @@ class HistoryWriter:
         """
         if self._closed:
             return
+        with _full_disk_reported(self.path):
+            self._write_buffer()
+
+    def _write_buffer(self) -> None:
+        """The body of :meth:`sync`."""
         if self._buffer:
             start = self.n_records - len(self._buffer)
             stop = self.n_records
@@ -453,7 +488,8 @@ def _atomic_to_netcdf(path: Path, ds: xr.Dataset, encoding: Mapping[str, Any]) -
     os.close(handle)
     temp = Path(temp_name)
     try:
-        ds.to_netcdf(temp, format=FILE_FORMAT, engine="netcdf4", encoding=dict(encoding))
+        with _full_disk_reported(path):
+            ds.to_netcdf(temp, format=FILE_FORMAT, engine="netcdf4", encoding=dict(encoding))
         _give_default_permissions(temp)
         os.replace(temp, path)
     except BaseException:

@@ -11,8 +11,6 @@ import errno
 import json
 from pathlib import Path
 
-import pytest
-
 from bridge.outputs import MANIFEST
 from bridge.pipeline import calibrate_from_results, main, synthetic_inputs
 
@@ -55,8 +53,7 @@ def test_the_manifest_lists_every_file_written(tmp_path):
     assert survived(mine)
 
 
-def test_an_earlier_calibration_is_refused_and_overwrite_removes_its_stale_files(tmp_path,
-                                                                                 capsys):  # fmt: skip
+def test_an_earlier_calibration_is_refused_and_overwrite_removes_stale_files(tmp_path, capsys):
     out = tmp_path / "cal"
     assert calibrate(out) == 0
     # an earlier calibration had a radial path: its prediction is listed but not written again
@@ -84,8 +81,9 @@ def test_the_python_call_removes_its_stale_files_but_never_its_inputs(tmp_path):
     calibrate_from_results(history, probes, out, options)
     (out / "prediction_radial_2.nc").write_text("stale")
     manifest = json.loads((out / MANIFEST).read_text())
-    (out / MANIFEST).write_text(json.dumps(manifest | {"files": [*manifest["files"],
-                                                                  "prediction_radial_2.nc"]}))
+    (out / MANIFEST).write_text(
+        json.dumps(manifest | {"files": [*manifest["files"], "prediction_radial_2.nc"]})
+    )
     calibrate_from_results(history, probes, out, options)
     assert not (out / "prediction_radial_2.nc").exists()
     assert history.exists() and probes.exists()
