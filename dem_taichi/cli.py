@@ -221,7 +221,6 @@ def _simulate(
     from dem_taichi.io import HistoryWriter, checkpoint_path, provenance_attrs
 
     out = run_dir.path
-    checkpoints = run_dir.checkpoint_dir
     if latest is not None:
         sim = Simulation.from_checkpoint(latest, arch=args.arch, precision=args.precision)
         if not args.quiet:
@@ -285,7 +284,7 @@ def _simulate(
                         history.append(sim.measure())
                         last_record = sim.step
                     if checkpoint_every and sim.step % checkpoint_every == 0:
-                        target = run_dir.output(checkpoint_path(checkpoints, sim.step))
+                        target = run_dir.output(checkpoint_path("checkpoints", sim.step))
                         run_dir.add_checkpoint(sim.save_checkpoint(target))
                         if args.paraview:
                             _paraview(sim, run_dir, stage)
@@ -299,7 +298,7 @@ def _simulate(
             return 3
         if stop.received is not None and last_record != sim.step:
             history.append(sim.measure())
-    path = sim.save_checkpoint(run_dir.output(checkpoint_path(checkpoints, sim.step)))
+    path = sim.save_checkpoint(run_dir.output(checkpoint_path("checkpoints", sim.step)))
     run_dir.add_checkpoint(path)
     if args.paraview:
         _paraview(sim, run_dir, stage if schedule else "gas")  # the stage the run ended in

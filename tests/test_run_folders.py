@@ -101,6 +101,14 @@ def test_the_manifest_lists_every_file_the_run_wrote_and_nothing_else(tmp_path):
     assert survived(mine)
 
 
+def test_a_run_folder_named_like_a_run_subfolder_lists_true_paths(tmp_path):
+    out = tmp_path / "checkpoints"  # the run's folder has the name of one of its subfolders
+    assert smoke_run(out, "--paraview") == 0
+    record = manifest(out)
+    assert set(record["files"]) | set(record["folders"]) == every_entry(out)
+    assert "checkpoints/checkpoint_000000000500.npz" in record["files"]
+
+
 def test_overwrite_deletes_the_manifest_only(tmp_path):
     out = tmp_path / "run"
     assert smoke_run(out, "--paraview") == 0
@@ -265,7 +273,7 @@ def test_a_lock_of_a_live_process_refuses_a_run_and_overwrite(tmp_path, capsys):
     start_run(out, "run", "smoke", SMOKE).close()
     history = sentinel(out / "history.nc")
     fake_lock(out, os.getpid())
-    for extra in ((), ("--overwrite",)):
+    for extra in ((), ("--overwrite",), ("--resume",)):
         assert smoke_run(out, *extra) == EXIT_USAGE
         line = one_line(capsys.readouterr().err)
         assert f"PID {os.getpid()}" in line and str(out / RUN_LOCK) in line and "in use" in line

@@ -191,19 +191,14 @@ def _is_run_name(name: str) -> bool:
 
 
 def _relative(folder: Path, path: str | os.PathLike[str]) -> str:
-    """``path`` (absolute, or relative to ``folder``) as a clean ``/``-separated relative path;
-    refused when it is not strictly inside ``folder``."""
+    """``path`` (relative to ``folder``, or absolute inside it) as a clean ``/``-separated
+    relative path; refused when it is not strictly inside ``folder``."""
     given = Path(path)
     if given.is_absolute():
         try:
             given = given.relative_to(folder.absolute())
         except ValueError:
-            try:
-                given = given.relative_to(folder)
-            except ValueError:
-                raise RunDirectoryError(f"{path} is not inside the run folder {folder}") from None
-    elif given.parts[: len(folder.parts)] == folder.parts and folder.parts:
-        given = given.relative_to(folder)
+            raise RunDirectoryError(f"{path} is not inside the run folder {folder}") from None
     rel = PurePosixPath(*given.parts)
     if not rel.parts or rel.is_absolute() or any(p in ("..", ".") for p in rel.parts):
         raise RunDirectoryError(f"{path} is not inside the run folder {folder}")

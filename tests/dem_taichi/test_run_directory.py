@@ -190,6 +190,7 @@ def test_interrupt_writes_a_checkpoint_and_resume_continues_bitwise(tmp_path):
             proc.kill()
     assert proc.returncode == 130, err
     assert "Traceback" not in err
+    assert not (out / "run.lock").exists()  # released on SIGINT (issue 22)
     last = err.strip().splitlines()[-1]
     assert "interrupted by SIGINT at step" in last and "--resume" in last, err
     stopped = int(checkpoint_meta(latest_checkpoint(out / "checkpoints"))["step"])
