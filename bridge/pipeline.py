@@ -624,9 +624,10 @@ def _quiet_say(quiet: bool):
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """``python -m bridge.pipeline`` (also ``python -m bridge calibrate``); returns the exit code
-    (one error handler, :mod:`tiv_model.command_line`: bad input is one line with exit code 2;
-    a calibration that cannot run, :class:`CalibrationError`, exit code 1; ``--debug`` shows
-    the traceback)."""
+    (one error handler, :mod:`tiv_model.command_line`: bad input, an ``--out`` holding an
+    earlier calibration without ``--overwrite`` included, is one line with exit code 2; a
+    calibration that cannot run, :class:`CalibrationError`, exit code 1; a full disk
+    (ENOSPC/EDQUOT), exit code 4; ``--debug`` shows the traceback)."""
     return run_command(prog, lambda args: _run(args, prog), argv, failures={CalibrationError: 1})
 
 

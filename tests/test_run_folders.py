@@ -507,3 +507,21 @@ def test_a_netcdf_hdf_error_on_a_full_disk_is_exit_code_4(tmp_path, monkeypatch,
     line = one_line(capsys.readouterr().err)
     assert ("disk full" in line) == (code == 4) and "HDF error" in line
     assert not target.exists()
+
+
+@pytest.mark.slow
+def test_the_protocol_lists_its_files_and_overwrite_deletes_them(tmp_path, capsys):
+    """The protocol's writers do not register their files: the run lists them when it closes
+    (≈ 40 s of CPU: the smoke protocol with one increment per path, no dynamic probes)."""
+    out = tmp_path / "protocol"
+    mine = sentinel(out / "notes.txt")
+    quick = ("--set", "probing.dynamic=false", "--set", "protocol.path_increments=1", "--quiet")
+    assert dem("protocol", "smoke", "--out", str(out), *quick) == 0
+    record = manifest(out)
+    assert set(record["files"]) | set(record["folders"]) == every_entry(out) - {"notes.txt"}
+    assert {"summary.json", "report.md", "resume/A.npz", "probes.nc"} <= set(record["files"])
+    assert not (out / RUN_LOCK).exists()
+    assert dem("protocol", "smoke", "--out", str(out), *quick) == EXIT_USAGE
+    assert "already holds run" in one_line(capsys.readouterr().err)
+    start_run(out, "protocol", "smoke", SMOKE, overwrite=True).close()
+    assert every_entry(out) == {"notes.txt", RUN_RECORD} and survived(mine)
