@@ -484,11 +484,11 @@ def scene_with_overrides(scene: Scene, overrides: list[str] | tuple[str, ...]) -
 def _parse_override(item: str) -> tuple[str, Any]:
     """``"section.key=value"`` → ``("section.key", value)``: the value is one TOML value (a
     number, boolean, quoted string or array), or else a bare word taken as a string. A line
-    break or other control character anywhere is refused (TOML would read what follows it as
-    further keys, which were then dropped without a word)."""
+    break or other control character (tab aside) anywhere is refused: TOML read what follows a
+    line break as further keys, which were then dropped without a word."""
     if not isinstance(item, str):
         raise SceneError(f"--set {item!r}: expected a string section.key=value")
-    bad = next((c for c in item if ord(c) < 32 or ord(c) == 127), None)
+    bad = next((c for c in item if (ord(c) < 32 and c != "\t") or ord(c) == 127), None)
     if bad is not None:
         raise SceneError(
             f"--set {item!r} contains the control character {bad!r} (a line break?): give "
@@ -501,15 +501,10 @@ def _parse_override(item: str) -> tuple[str, Any]:
             f"--set {item!r}: expected section.key=value (e.g. contact.mu=0.2 or scene.seed=4)"
         )
     try:
-        parsed = tomllib.loads(f"v = {text.strip()}")
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
-        parsed = {"v": text.strip()}  # a bare word, e.g. particles.rod_model=bonded
-    if set(parsed) != {"v"}:
-        raise SceneError(
-            f"--set {item!r}: the value must be one TOML value (a number, true/false, a quoted "
-            "string or an array)"
-        )
-    return f"{section}.{key.strip()}", parsed["v"]
+        value = text.strip()  # a bare word, e.g. particles.rod_model=bonded
+    return f"{section}.{key.strip()}", value
 
 
 def _toml_value(value: Any) -> str:

@@ -8,6 +8,8 @@ called in process (their ``main`` returns the exit code) and, for a few, as real
 
 from __future__ import annotations
 
+import functools
+import math
 import subprocess
 import sys
 import tomllib
@@ -124,6 +126,104 @@ def modulus_in_kilograms(tmp: Path) -> None:
 
 def stress_without_units(tmp: Path) -> None:
     synthetic_files(tmp, "stress_xx", units=None)
+
+
+def not_utf8_scene(tmp: Path) -> None:
+    """The smoke scene saved in Latin-1 with an accented description (issue 22)."""
+    text = smoke_with(scene={"description": "argile très molle"})
+    (tmp / "scene.toml").write_bytes(text.encode("latin-1"))
+
+
+def binary_scene(tmp: Path) -> None:
+    (tmp / "scene.toml").write_bytes(b"\xff\xfe[\x00p\x00a\x00r\x00t\x00]\x00")
+
+
+def history_variant(tmp: Path, change) -> None:
+    """Synthetic history.nc and probes.nc with ``change(history, probes)`` applied."""
+    from bridge.series import Convention
+    from bridge.synthetic import synthetic_results
+    from tiv_model.params import TABLE1
+
+    data = synthetic_results(
+        TABLE1, convention=Convention(50.0), increments=2, unloading_increments=1
+    )
+    history, probes = change(data.history.copy(), data.probes.copy())
+    history.to_netcdf(tmp / "history.nc")
+    probes.to_netcdf(tmp / "probes.nc")
+
+
+def stress_2d(tmp: Path) -> None:
+    def change(h, p):
+        h["stress_xx"] = (("time", "x"), np.stack([h["stress_xx"].values] * 2, 1),
+                          h["stress_xx"].attrs)  # fmt: skip
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def stress_scalar(tmp: Path) -> None:
+    def change(h, p):
+        h["stress_yy"] = ((), 1.0, h["stress_yy"].attrs)
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def history_empty(tmp: Path) -> None:
+    history_variant(tmp, lambda h, p: (h.isel(time=slice(0, 0)), p))
+
+
+def stress_as_text(tmp: Path) -> None:
+    def change(h, p):
+        h["specific_volume"] = h["specific_volume"].astype(str)
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def volume_on_another_dimension(tmp: Path) -> None:
+    def change(h, p):
+        h["specific_volume"] = (("record",), h["specific_volume"].values,
+                                h["specific_volume"].attrs)  # fmt: skip
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def tensor_flat(tmp: Path) -> None:
+    def change(h, p):
+        tensor = p["stiffness_tensor_linear"]
+        p["stiffness_tensor_linear"] = (("probe",), np.ones(p.sizes["probe"]), tensor.attrs)
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def probe_moduli_2d(tmp: Path) -> None:
+    def change(h, p):
+        modulus = p["e_oed_v_linear"]
+        p["e_oed_v_linear"] = (("probe", "y"), np.stack([modulus.values] * 3, 1), modulus.attrs)
+        return h, p
+
+    history_variant(tmp, change)
+
+
+def sweep_file(text: str, scene: bytes | None = None):
+    """A setup writing ``sweep.toml`` (and ``base.toml``, bytes, when given)."""
+
+    def setup(tmp: Path) -> None:
+        (tmp / "sweep.toml").write_text(text)
+        if scene is not None:
+            (tmp / "base.toml").write_bytes(scene)
+
+    return setup
+
+
+def sweep_bytes(data: bytes):
+    def setup(tmp: Path) -> None:
+        (tmp / "sweep.toml").write_bytes(data)
+
+    return setup
 
 
 # the tables: one case a line
@@ -268,8 +368,59 @@ BRIDGE_CASES = [
     Case("bridge-unknown-option", "bridge", ("--synthetic", "--out", "{out}", "--fast"), ("unrecognized arguments",)),  # noqa: E501
 ]
 
+# issue 22: accepted, or blamed on the wrong thing, before; each now one line naming the key/file
+NEWLINE = "contact.mu=0.2\ncontact.k_n=5"
+SWEEP = ("sweep.toml", "--out", "{out}")
+SMOKE_SWEEP = '[sweep]\nscene = "smoke"\n'
+HISTORY = ("--history", "history.nc", "--probes", "probes.nc", "--out", "{out}")
+ISSUE22_CASES = [
+    Case("set-newline-drops-keys", "dem", (*RUN, "--set", NEWLINE), ("--set 'contact.mu=0.2\\ncontact.k_n=5'", "control character '\\n'", "one section.key=value per --set"), smoke_with()),  # noqa: E501
+    Case("set-newline-in-string", "dem", (*RUN, "--set", 'scene.description="a\nb"'), ("--set", "control character '\\n'"), smoke_with()),  # noqa: E501
+    Case("set-carriage-return", "dem", (*PROTOCOL, "--set", "contact.mu=0.2\r"), ("control character '\\r'",), smoke_with()),  # noqa: E501
+    Case("protocol-module-set-newline", "protocol", ("{scene}", "--out", "{out}", "--set", NEWLINE), ("control character",), smoke_with()),  # noqa: E501
+    Case("scene-k_n-1e308", "dem", RUN, ("[contact] k_n = 1e+308 is out of range", "magnitudes 1e-12 to 1e+12"), smoke_with(contact={"k_n": 1e308})),  # noqa: E501
+    Case("scene-k_n-tiny", "dem", RUN, ("[contact] k_n = 1e-300 is out of range",), smoke_with(contact={"k_n": 1e-300})),  # noqa: E501
+    Case("set-k_n-1e308", "dem", (*RUN, "--set", "contact.k_n=1e308"), ("[contact] k_n = 1e+308",), smoke_with()),  # noqa: E501
+    Case("scene-disc_mass-huge", "dem", RUN, ("[particles] disc_mass = 1e+308 is out of range",), smoke_with(particles={"disc_mass": 1e308})),  # noqa: E501
+    Case("scene-disc_mass-tiny", "dem", RUN, ("[particles] disc_mass = 1e-300 is out of range",), smoke_with(particles={"disc_mass": 1e-300})),  # noqa: E501
+    Case("scene-diameter-huge", "dem", RUN, ("[particles] diameter = 1e+300",), smoke_with(particles={"diameter": 1e300, "spacing": 1e300})),  # noqa: E501
+    Case("scene-gamma_t-huge", "dem", RUN, ("[contact] gamma_t = 1e+308",), smoke_with(contact={"gamma_t": 1e308})),  # noqa: E501
+    Case("scene-k_a_edge-huge", "dem", RUN, ("[long_range] k_a_edge = 1e+308",), smoke_with(long_range={"k_a_edge": 1e308})),  # noqa: E501
+    Case("scene-strain-rate-huge", "dem", RUN, ("[control] compression_strain_rate = 1e+200",), smoke_with(control={"compression_strain_rate": 1e200})),  # noqa: E501
+    Case("scene-relax_steps-huge", "dem", RUN, ("[control] relax_steps = 1000000000000000", "magnitudes"), smoke_with(control={"relax_steps": 10**15})),  # noqa: E501
+    Case("protocol-target-huge", "dem", PROTOCOL, ("[protocol] target_mean_stress = 1e+300",), smoke_with(protocol={"target_mean_stress": 1e300})),  # noqa: E501
+    Case("scene-dt_safety-tiny", "dem", RUN, ("[integration] dt_safety = 1e-300 is out of range", "[0.001, 0.5]"), smoke_with(integration={"dt_safety": 1e-300})),  # noqa: E501
+    Case("scene-dt_safety-load-hang", "dem", RUN, ("[integration] dt_safety = 1e-06",), smoke_with(integration={"dt_safety": 1e-6})),  # noqa: E501
+    Case("scene-k_t-ten-times-k_n", "dem", RUN, ("[contact] k_t = 1000000.0 is 10 × k_n = 100000.0", "k_t/k_n <= 6", "dt_safety = 0.15", "2/3 to 1"), smoke_with(contact={"k_t": 1e6})),  # noqa: E501
+    Case("scene-k_t-equal-k_n-large-dt", "dem", RUN, ("k_t/k_n <= 0.844", "dt_safety = 0.4"), smoke_with(contact={"k_t": 1e5}, integration={"dt_safety": 0.4})),  # noqa: E501
+    Case("set-k_n-below-k_t", "dem", (*PROTOCOL, "--set", "contact.k_n=1000"), ("[contact] k_t = 20000.0 is 20 × k_n = 1000.0",), smoke_with()),  # noqa: E501
+    Case("scene-not-utf8", "dem", ("run", "scene.toml", "--out", "{out}"), ("scene file 'scene.toml' is not UTF-8", "byte 0xe8", "save it as UTF-8"), setup=not_utf8_scene),  # noqa: E501
+    Case("scene-binary", "dem", ("run", "scene.toml", "--out", "{out}"), ("scene file 'scene.toml' is not UTF-8", "offset 0"), setup=binary_scene),  # noqa: E501
+    Case("protocol-scene-not-utf8", "protocol", ("scene.toml", "--out", "{out}"), ("scene file 'scene.toml' is not UTF-8",), setup=not_utf8_scene),  # noqa: E501
+    Case("sweep-file-not-utf8", "sweep", SWEEP, ("sweep file 'sweep.toml' is not UTF-8",), setup=sweep_bytes(SMOKE_SWEEP.encode() + b"# \xe9t\xe9\n")),  # noqa: E501
+    Case("sweep-scene-not-utf8", "sweep", SWEEP, ("[sweep] scene file", "base.toml' is not UTF-8"), setup=sweep_file('[sweep]\nscene = "base.toml"\n[sweep.grid]\n"scene.seed" = [1]\n', b"[particles]\n# \xff\n")),  # noqa: E501
+    Case("sweep-member-dotdot", "sweep", SWEEP, ("[[sweep.members]] #1 name = '..'", "not '.' or '..'"), setup=sweep_file(SMOKE_SWEEP + '[[sweep.members]]\nname = ".."\n')),  # noqa: E501
+    Case("sweep-member-slash", "sweep", SWEEP, ("name = 'a/b'", "no path separator"), setup=sweep_file(SMOKE_SWEEP + '[[sweep.members]]\nname = "a/b"\n')),  # noqa: E501
+    Case("sweep-set-k_n-1e308", "sweep", SWEEP, ("member base (no keys): [contact] k_n = 1e+308",), setup=sweep_file(SMOKE_SWEEP + '[sweep.set]\n"contact.k_n" = 1e308\n[[sweep.members]]\nname = "base"\n')),  # noqa: E501
+    Case("sweep-grid-k_t-ten-times", "sweep", SWEEP, ("member k_t-1e06", "[contact] k_t = 1000000.0 is 10 × k_n"), setup=sweep_file(SMOKE_SWEEP + '[sweep.grid]\n"contact.k_t" = [1e6]\n')),  # noqa: E501
+    Case("sweep-out-newline", "sweep", ("sweep.toml", "--out", "o\nut"), ("--out", "control character '\\n'"), setup=sweep_file(SMOKE_SWEEP + '[sweep.grid]\n"scene.seed" = [1]\n')),  # noqa: E501
+    Case("tiv-param-k-1e308", "tiv", (*K0, "--param", "k=1e308"), ("parameter bulk_stiffness_coefficient (k", "|k| <= 1e+08")),  # noqa: E501
+    Case("tiv-param-r-1e300", "tiv", (*K0, "--param", "r=1e300"), ("(r, preconsolidation exponent", "|r| <= 1e+08")),  # noqa: E501
+    Case("tiv-param-N-1e308", "tiv", (*K0, "--param", "N=1e308"), ("ncl_intercept (N", "|N| <= 1e+08")),  # noqa: E501
+    Case("tiv-param-lambda-tiny", "tiv", (*K0, "--param", "lambda_star=1e-300"), ("parameters r, n, lambda_star", "energy exponent")),  # noqa: E501
+    Case("tiv-param-g-times-p_r", "tiv", (*K0, "--param", "g=1e7", "--param", "p_r=1e3"), ("parameters g, p_r", "shear modulus scale g p_r = 1e+10")),  # noqa: E501
+    Case("tiv-param-newline", "tiv", (*K0, "--param", "n=0.2\nM=3"), ("--param 'n=0.2\\nM=3'", "is not a number")),  # noqa: E501
+    Case("bridge-history-2d-stress", "bridge", HISTORY, ("history variable 'stress_xx' has dimensions ('time', 'x')", "one value per record"), setup=stress_2d),  # noqa: E501
+    Case("bridge-history-scalar-stress", "bridge", HISTORY, ("history variable 'stress_yy' has dimensions ()",), setup=stress_scalar),  # noqa: E501
+    Case("bridge-history-no-records", "bridge", HISTORY, ("history has no records", "'time' is empty"), setup=history_empty),  # noqa: E501
+    Case("bridge-history-text-volume", "bridge", HISTORY, ("history variable 'specific_volume' has type", "needs numbers"), setup=stress_as_text),  # noqa: E501
+    Case("bridge-history-two-dimensions", "bridge", HISTORY, ("'specific_volume' is along ('record',)", "share one record dimension"), setup=volume_on_another_dimension),  # noqa: E501
+    Case("bridge-probes-flat-tensor", "bridge", HISTORY, ("probes dataset variable 'stiffness_tensor_linear'", "i, j >= 2"), setup=tensor_flat),  # noqa: E501
+    Case("bridge-probes-2d-modulus", "bridge", HISTORY, ("probes dataset variable 'e_oed_v_linear' has dimensions ('probe', 'y')",), setup=probe_moduli_2d),  # noqa: E501
+]
+
 # fmt: on
-CASES = DEM_CASES + TIV_CASES + BRIDGE_CASES
+CASES = DEM_CASES + TIV_CASES + BRIDGE_CASES + ISSUE22_CASES
 
 
 def entry(name: str):
@@ -279,6 +430,8 @@ def entry(name: str):
         from dem_taichi.protocol import main
     elif name == "tiv":
         from tiv_model.cli import main
+    elif name == "sweep":
+        from dem_taichi.sweep import main
     else:
         from bridge.pipeline import main
     return main
@@ -340,6 +493,14 @@ def test_the_real_command_lines(command, words, tmp_path):
 
 
 # -- the Python APIs: each bad call raises at once, with a message naming what is wrong -------
+@functools.cache
+def _simulation():
+    """One smoke-scene Simulation for the argument checks of ``run`` (Taichi starts once)."""
+    from dem_taichi import Simulation
+
+    return Simulation(load_scene("smoke"))
+
+
 def _api_cases():
     from bridge.pipeline import calibrate_from_results, calibrate_on_replicas
     from bridge.series import SeriesError
@@ -356,8 +517,50 @@ def _api_cases():
     def smoke():
         return load_scene("smoke")
 
+    def sim():
+        return _simulation()
+
+    def latin1(t, name):
+        path = t / name
+        path.write_bytes("[sweep]\nscene = 'smoke' # très\n".encode("latin-1"))
+        return path
+
+    def flat_history():
+        from bridge.series import Convention
+        from bridge.synthetic import synthetic_results
+
+        history = synthetic_results(TABLE1, convention=Convention(50.0), increments=2,
+                                    unloading_increments=1).history  # fmt: skip
+        history["fabric_deviator"] = (("time", "x"), np.zeros((history.sizes["time"], 2)))
+        return history, Convention(50.0)
+
+    from bridge.series import path_series
+    from dem_taichi.sweep_spec import load_sweep
+
+    grid = (
+        '[sweep]\nscene = "smoke"\n[sweep.grid]\n'
+        f'"scene.seed" = [{", ".join(map(str, range(1, 101)))}]\n'
+        f'"output.every" = [{", ".join(map(str, range(1, 102)))}]\n'
+    )
+
     # fmt: off
     return [
+        ("Simulation.run-nan", lambda t: sim().run(float("nan")), ValueError, "n_steps = nan: must be a whole number"),  # noqa: E501
+        ("Simulation.run-inf", lambda t: sim().run(math.inf), ValueError, "n_steps = inf"),
+        ("Simulation.run-negative", lambda t: sim().run(-3), ValueError, "n_steps = -3 is out of range: allowed integers >= 0"),  # noqa: E501
+        ("Simulation.run-fraction", lambda t: sim().run(2.5), ValueError, "n_steps = 2.5"),
+        ("Simulation.run-bool", lambda t: sim().run(True), ValueError, "n_steps = True: must be an integer"),  # noqa: E501
+        ("Simulation.run-text", lambda t: sim().run("100"), ValueError, "n_steps = '100'"),
+        ("Simulation.run-output_every-zero", lambda t: sim().run(10, output_every=0), ValueError, "output_every = 0 is out of range"),  # noqa: E501
+        ("Simulation.run-output_every-negative", lambda t: sim().run(10, output_every=-5), ValueError, "output_every = -5"),  # noqa: E501
+        ("scene_with_overrides-newline", lambda t: scene_with_overrides(smoke(), ["contact.mu=0.2\ncontact.k_n=5"]), SceneError, "control character '\\n'"),  # noqa: E501
+        ("Scene.replace-k_n-huge", lambda t: smoke().replace(contact={"k_n": 1e300}), SceneError, "[contact] k_n = 1e+300 is out of range"),  # noqa: E501
+        ("load_scene-not-utf8", lambda t: load_scene(latin1(t, "s.toml")), SceneError, "s.toml' is not UTF-8 text (byte 0xe8 at offset 28)"),  # noqa: E501
+        ("load_sweep-not-utf8", lambda t: load_sweep(latin1(t, "w.toml")), SweepError, "sweep file"),  # noqa: E501
+        ("sweep_from_toml-grid-too-large", lambda t: sweep_from_toml(grid), SweepError, "makes 10,100 members (100 × 101): allowed at most 10,000"),  # noqa: E501
+        ("Parameters-k-1e308", lambda t: TABLE1.replace(k=1e308), ParameterError, "need |k| <= 1e+08"),  # noqa: E501
+        ("Parameters-lambda-tiny", lambda t: TABLE1.replace(lambda_star=1e-300), ParameterError, "energy exponent"),  # noqa: E501
+        ("path_series-2d-fabric", lambda t: path_series(*flat_history()[:1], "k0", flat_history()[1]), SeriesError, "'fabric_deviator' has dimensions ('time', 'x')"),  # noqa: E501
         ("Simulation-unknown-scene", lambda t: Simulation("nope"), SceneError, "no built-in scene 'nope'"),  # noqa: E501
         ("Simulation-not-a-scene", lambda t: Simulation(42), SceneError, "scene = 42: give a built-in scene name"),  # noqa: E501
         ("Simulation-arch", lambda t: Simulation(smoke(), arch="tpu"), ValueError, "cpu | gpu"),
