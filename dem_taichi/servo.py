@@ -12,6 +12,16 @@ s = 1 (``servo_stiffness = "elastic"``) or the measured secant/elastic ratio
 :class:`StressServo` is the loop; :class:`ServoMemory` what it keeps from one call to the next
 (the time constant T of each stage, doubled while the servo hunts).
 
+Portable arithmetic: the servo's output (the strain rates) steers the trajectory, which the
+serial engine keeps bit for bit, on any machine. So the servo's small linear algebra (the 1×1 or
+2×2 gain, its products with residuals, the secant estimate) is plain Python float arithmetic
+(IEEE double, no BLAS: OpenBLAS picks its kernels by CPU, with or without fused multiply-add,
+which changes last bits), and the linear-response stiffness, computed by sparse solvers whose
+last bits depend on the BLAS kernels, is rounded to ``JACOBIAN_DIGITS`` significant digits
+before use (a controller gain needs no more; the rounding absorbs the kernels' differences
+except for a value within ~1e-15 of a rounding boundary). Tested by running the smoke
+references with OpenBLAS forced onto other kernels (``tests/test_portable_suite.py``).
+
 Symbols: σ stress (force/length, compression positive), p = (σ_xx+σ_yy)/2, ε logarithmic strain
 (compression positive), t the targets, UFR unbalanced-force ratio, I inertial number.
 """
@@ -29,7 +39,54 @@ from dem_taichi.protocol_config import ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, StageRecord
 from dem_taichi.quasistatic import _control, strain_rate_cap
 
-__all__ = ["SecantStiffness", "ServoMemory", "StressServo", "initial_jacobian", "rate_factor"]
+__all__ = [
+    "JACOBIAN_DIGITS",
+    "SecantStiffness",
+    "ServoMemory",
+    "StressServo",
+    "initial_jacobian",
+    "rate_factor",
+]
+
+#: Significant digits kept of the linear-response stiffness in the servo's gain (module docstring).
+JACOBIAN_DIGITS = 6
+
+
+def _matvec(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """matrix @ vector in Python floats, each row's sum correctly rounded (no BLAS: portable)."""
+    return np.array([_dot(row, vector) for row in matrix])
+
+
+def _matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a @ b of small matrices in Python floats (no BLAS: portable)."""
+    return np.array([_matvec(a, column) for column in np.asarray(b).T]).T
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a · b of two small vectors in Python floats (no BLAS: portable)."""
+    return math.fsum([float(x) * float(y) for x, y in zip(a, b, strict=True)])
+
+
+def _norm(a: np.ndarray) -> float:
+    return math.sqrt(_dot(a, a))
+
+
+def _inverse(matrix: np.ndarray) -> np.ndarray | None:
+    """Inverse of a 1×1 or 2×2 matrix by the explicit formula (no LAPACK: portable); None when
+    singular."""
+    if matrix.shape == (1, 1):
+        a = float(matrix[0, 0])
+        return np.array([[1.0 / a]]) if a != 0.0 else None
+    (a, b), (c, d) = ((float(v) for v in row) for row in matrix)
+    det = a * d - b * c
+    if det == 0.0 or not math.isfinite(det):
+        return None
+    return np.array([[d / det, -b / det], [-c / det, a / det]])
+
+
+def _rounded(matrix: np.ndarray, digits: int) -> np.ndarray:
+    """``matrix`` with each entry rounded to ``digits`` significant digits."""
+    return np.array([[float(f"{float(v):.{digits - 1}e}") for v in row] for row in matrix])
 
 
 def _stress(measures: Measures) -> np.ndarray:
@@ -38,7 +95,7 @@ def _stress(measures: Measures) -> np.ndarray:
 
 
 def _controlled(weights: np.ndarray, measures: Measures) -> np.ndarray:
-    return weights @ _stress(measures)
+    return _matvec(weights, _stress(measures))
 
 
 def _strains(measures: Measures, axes: list[int]) -> np.ndarray:
@@ -86,22 +143,23 @@ class SecantStiffness:
             self.restart(controlled, strains)
             self._sign = sign
             return self.ratio
-        predicted = self.jacobian @ (strains - self._e0)
-        if np.linalg.norm(predicted) > self.min_change * np.linalg.norm(scale):
+        predicted = _matvec(self.jacobian, strains - self._e0)
+        if _norm(predicted) > self.min_change * _norm(scale):
             measured = controlled - self._y0
-            s = float(measured @ predicted / (predicted @ predicted))
+            s = _dot(measured, predicted) / _dot(predicted, predicted)
             self.ratio = min(max(s, self.s_min), 1.0)
         return self.ratio
 
 
 def initial_jacobian(sim, pressure_tolerance: float) -> np.ndarray:
-    """dσ/dε (2×2, axial part) of the relaxed network from the linear-response probe."""
+    """dσ/dε (2×2, axial part) of the relaxed network from the linear-response probe, rounded
+    to ``JACOBIAN_DIGITS`` significant digits (module docstring: portable trajectories)."""
     from dem_taichi.bonded_response import network_response
 
     try:
         response = network_response(sim.snapshot(), sliding_contacts="free")
-        c = np.asarray(response.stiffness[:2, :2], dtype=float)
-        if np.all(np.isfinite(c)) and np.linalg.det(c) > 0:
+        c = _rounded(np.asarray(response.stiffness[:2, :2], dtype=float), JACOBIAN_DIGITS)
+        if np.all(np.isfinite(c)) and c[0, 0] * c[1, 1] - c[0, 1] * c[1, 0] > 0:
             return c
     except Exception:  # noqa: BLE001 - a guess only; fall back below
         pass
@@ -192,18 +250,18 @@ class StressServo:
         control_axes = list(axes)
 
         def inverse(stiffness: np.ndarray) -> np.ndarray:
-            jac = weights @ stiffness[:, control_axes]
-            try:
-                return np.linalg.inv(jac)
-            except np.linalg.LinAlgError:
-                return np.diag(1.0 / np.abs(np.diag(jac)))
+            jac = _matmul(weights, stiffness[:, control_axes])
+            inv = _inverse(jac)
+            return inv if inv is not None else np.diag(1.0 / np.abs(np.diag(jac)))
 
         elastic = initial_jacobian(sim, c.pressure_tolerance)
         inverse_jacobian = inverse(elastic)
         servo_time = times.get(stage, c.servo_time)
         gain = inverse_jacobian / servo_time
         secant = SecantStiffness(
-            weights @ elastic[:, control_axes], c.servo_softening_min, c.servo_near_target
+            _matmul(weights, elastic[:, control_axes]),
+            c.servo_softening_min,
+            c.servo_near_target,
         )
         secant.restart(_controlled(weights, measures), _strains(measures, control_axes))
         steps = 0
@@ -254,7 +312,7 @@ class StressServo:
                 sim, measures["mean_stress"], c.pressure_tolerance, c.inertial_number_safety
             )
             rates = np.zeros(2)
-            rates[control_axes] = np.clip(gain @ residual, -rate_cap, rate_cap)
+            rates[control_axes] = np.clip(_matvec(gain, residual), -rate_cap, rate_cap)
             measures = sim.run(
                 c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
             )
