@@ -3,17 +3,39 @@
 ::
 
     python -m dem_taichi.sweep SWEEP.toml --out DIR [--scheduler ADDRESS] [--n-workers N]
+        [--tls-ca-file CA.pem --tls-cert CERT.pem [--tls-key KEY.pem]] [--dashboard ADDRESS]
+        [--max-members N]
     python -m dem_taichi.sweep summarise DIR [--over scene.seed] [--out FILE.md]
 
 The sweep file (:mod:`dem_taichi.sweep_spec`) gives a base scene and a grid and/or a list of
 members; each member is a whole :func:`dem_taichi.protocol.run_protocol` in ``DIR/members/<name>``.
+Member names are 1 to 120 characters of ``A-Z a-z 0-9 - _ . = +`` and neither ``.`` nor ``..``
+(checked at load, naming the member), and every member folder is resolved and checked to be
+``DIR/members/<name>`` (no link leading elsewhere) before anything in it is written or deleted.
+A sweep has at most 10,000 members (:data:`dem_taichi.sweep_spec.MAX_MEMBERS`; ``--max-members``
+raises it): a larger grid is refused with its size before anything is built.
+
 Members run as Dask tasks (``dask.distributed``): by default on a ``LocalCluster`` of one
 process per core (÷ the sweep's ``workers``, the processes each member uses for its paths from
-A), one thread each; ``--scheduler`` runs them on an existing cluster instead, whose workers must
+A), one thread each, listening on 127.0.0.1 only and serving no HTTP route (Dask's scheduler
+otherwise opens port 8787 even without a dashboard); ``--dashboard 127.0.0.1:8787`` opts in to
+Dask's dashboard. ``--scheduler`` runs them on an existing cluster instead, whose workers must
 have this package installed and see ``DIR`` at the same path. Taichi is initialised in each
 worker process by the first member it runs (:mod:`dem_taichi.runtime`); the Nanny *spawns* the
 worker processes (never forks), and a process runs one member at a time (a lock, for workers
 with several threads).
+
+A Dask scheduler runs whatever task a client submits to it: anyone who can reach its port can
+run any code as the workers' user (read and delete their files, start processes). A ``tcp://``
+scheduler has neither encryption nor authentication: keep it on 127.0.0.1, behind a firewall or
+an SSH tunnel, on a network whose every user you trust. Across a shared network use TLS with
+mutual authentication: start the scheduler and workers with ``--tls-ca-file``, ``--tls-cert``,
+``--tls-key`` and ``distributed.comm.require-encryption: true`` (``dask scheduler --help``),
+then give this command ``--scheduler tls://HOST:PORT --tls-ca-file CA.pem --tls-cert
+CLIENT.pem [--tls-key CLIENT.key]``; only clients holding a certificate signed by that CA can
+then connect. From Python: ``run_sweep(spec, DIR, scheduler="tls://HOST:PORT",
+security=distributed.security.Security(tls_ca_file=..., tls_client_cert=...,
+tls_client_key=..., require_encryption=True))``.
 
 What a sweep writes in ``DIR``:
 
@@ -25,9 +47,13 @@ What a sweep writes in ``DIR``:
 - ``index.json`` and ``index.csv``: one row per member (name, status, seconds, error, keys).
 
 A failed member (an exception in its protocol, or its worker process dying) is recorded with
-its error and does not stop the others; the exit code is then 1. A re-run of the same sweep
-skips the members that are done (same scene hash) and runs the others again: an unfinished
-or failed member that had reached state A resumes from there, with the branches from A it had
+its error and does not stop the others; the exit code is then 1. SIGINT (Ctrl-C) or SIGTERM
+stops the sweep: the cluster is closed, the index written, one line says how many members are
+done and that the same command resumes the others; the exit code is 128 + the signal (130,
+143). (On a ``--scheduler`` cluster the members already running finish on their workers.) A
+re-run of the same sweep says it resumes (how many members were done, unfinished, failed),
+skips the members that are done (same scene hash) and runs the others again: an unfinished or
+failed member that had reached state A resumes from there, with the branches from A it had
 finished (:mod:`dem_taichi.protocol_resume`); one stopped before A starts again from the gas.
 A member done with another scene than the sweep file now gives it is refused unless
 ``--overwrite``. ``summarise`` and
@@ -654,10 +680,12 @@ def _main(argv: list[str], prog: str) -> int:
 
 def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.sweep") -> int:
     """``python -m dem_taichi.sweep [run] SWEEP.toml --out DIR [--scheduler ADDRESS]
-    [--n-workers N] [--overwrite] [--verbose]`` | ``summarise DIR [--over KEY] [--out FILE]``
+    [--tls-ca-file F --tls-cert F [--tls-key F]] [--n-workers N] [--dashboard ADDRESS]
+    [--max-members N] [--overwrite] [--verbose]`` | ``summarise DIR [--over KEY] [--out FILE]``
     (both with ``--quiet``, ``--debug``); returns the exit code: 0 every member done, 1 a
     member failed, 2 bad input (an invalid sweep file: one line naming the key and what is
-    allowed; the traceback with ``--debug``; :mod:`tiv_model.command_line`)."""
+    allowed; the traceback with ``--debug``; :mod:`tiv_model.command_line`), 128 + N stopped
+    by signal N (130 SIGINT, 143 SIGTERM; a re-run resumes)."""
     from tiv_model.command_line import run_command
 
     return run_command(prog, lambda args: _main(args, prog), argv, user_errors=(SweepError,))

@@ -26,6 +26,7 @@ import xarray as xr
 from dem_taichi.findings import STATE_MEASURES, mean_interval, run_findings, state_findings
 from dem_taichi.io import open_history
 from dem_taichi.io.schema import HISTORY_VARIABLES, PROBE_VARIABLES
+from dem_taichi.sweep_member import checked_member_dir
 
 __all__ = [
     "open_sweep",
@@ -78,10 +79,12 @@ def parameter_name(key: str) -> str:
 
 
 def _finished_members(out: Path) -> tuple[dict, list[dict], list[str]]:
+    """The sweep record, its finished members and the names of the others; each member's
+    folder checked to lie in ``out/members`` (a ``sweep.json`` naming ``..`` is refused)."""
     sweep = json.loads((out / "sweep.json").read_text())
     finished, other = [], []
     for m in sweep["members"]:
-        folder = out / "members" / m["name"]
+        folder = checked_member_dir(out, m["name"])
         try:
             record = json.loads((folder / "member.json").read_text())
         except (OSError, ValueError):

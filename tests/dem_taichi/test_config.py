@@ -178,3 +178,36 @@ def test_scene_overrides_are_validated_like_the_file():
         with pytest.raises(SceneError) as error:
             scene_with_overrides(base, bad)
         assert words in str(error.value)
+
+
+def test_tangential_stiffness_limit_is_the_leapfrog_bound_of_two_discs():
+    """ω_t = sqrt(3 k_t/k_n) ω_n for two free discs, ω_n Δt = π dt_safety, leapfrog needs
+    ω Δt < 2: the limit is where sqrt(3 k_t/k_n) π dt_safety = 2."""
+    from dem_taichi.config import SceneError, load_scene, tangential_stiffness_limit
+
+    for dt_safety in (0.05, 0.15, 0.4):
+        ratio = tangential_stiffness_limit(dt_safety)
+        assert math.sqrt(3.0 * ratio) * math.pi * dt_safety == pytest.approx(2.0)
+    smoke = load_scene("smoke")
+    limit = tangential_stiffness_limit(smoke.integration.dt_safety) * smoke.contact.k_n
+    scene_from_toml(f"[contact]\nk_t = {0.99 * limit}\n")  # just inside
+    with pytest.raises(SceneError, match=r"\[contact\] k_t = .* × k_n = 100000.0: allowed k_t/k_n"):
+        scene_from_toml(f"[contact]\nk_t = {1.01 * limit}\n")
+
+
+@pytest.mark.parametrize(
+    ("toml", "words"),
+    [
+        ("[contact]\nk_n = 1e13\n", "[contact] k_n = 10000000000000.0 is out of range"),
+        ("[contact]\ngamma_t = 1e-13\n", "[contact] gamma_t = 1e-13 is out of range"),
+        ("[output]\nevery = 2000000000000\n", "[output] every = 2000000000000"),
+        ("[protocol]\nservo_time = 1e15\n", "[protocol] servo_time = 1000000000000000.0"),
+    ],
+)
+def test_every_number_of_a_scene_lies_within_the_magnitude_bounds(toml, words):
+    from dem_taichi.config import SceneError
+
+    with pytest.raises(SceneError) as raised:
+        scene_from_toml(toml)
+    assert words in str(raised.value) and "magnitudes 1e-12 to 1e+12 (or 0)" in str(raised.value)
+    scene_from_toml("[contact]\ngamma_t = 0.0\nk_n = 1e12\nk_t = 1e-12\n")  # 0 and the bounds

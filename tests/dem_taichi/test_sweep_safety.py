@@ -288,3 +288,13 @@ def test_scheduler_options_are_checked_before_anything_runs(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_sweep_record_naming_dotdot_is_refused_when_read(tmp_path):
+    from dem_taichi.sweep_results import open_sweep
+
+    (tmp_path / "members").mkdir()
+    write_json(tmp_path / "sweep.json", {"sweep": "s", "scene": "smoke", "members": [
+        {"name": "..", "parameters": {}, "overrides": {}, "scene_sha256": "x"}]})  # fmt: skip
+    with pytest.raises(SweepError, match="name = '..'"):
+        open_sweep(tmp_path)
