@@ -26,6 +26,7 @@ import fnmatch
 import json
 import os
 import stat
+import tempfile
 from pathlib import Path, PurePosixPath
 
 __all__ = [
@@ -188,9 +189,12 @@ class Outputs:
             )
         files = sorted(self.written | {r for r in keep if (self.out / r).exists()})
         text = json.dumps({"format": MANIFEST_FORMAT, "files": files}, indent=2) + "\n"
-        temporary = path.with_name(f".{MANIFEST}.{os.getpid()}.tmp")
+        handle, name = tempfile.mkstemp(dir=self.out, prefix=f".{MANIFEST}.", suffix=".tmp")
+        temporary = Path(name)
         try:
-            temporary.write_text(text)
+            with os.fdopen(handle, "w") as stream:
+                stream.write(text)
+            os.chmod(temporary, 0o644)
             os.replace(temporary, path)
         finally:
             temporary.unlink(missing_ok=True)
@@ -237,15 +241,8 @@ def check_out(out_text: str, overwrite: bool) -> Path:
 
 
 def write_netcdf(ds, path: Path) -> Path:
-    """``ds.to_netcdf(path)``; netCDF4's "HDF error" on a full disk is raised again as
-    ``OSError`` ENOSPC naming ``path`` (the command line's disk-full exit code)."""
-    from tiv_model.command_line import disk_full_while_writing
+    """``ds.to_netcdf(path)`` atomically (:func:`tiv_model.command_line.replace_file`: no half
+    file, netCDF4's "HDF error" on a full disk raised as ``OSError`` ENOSPC)."""
+    from tiv_model.command_line import replace_file
 
-    try:
-        ds.to_netcdf(path)
-    except RuntimeError as error:
-        full = disk_full_while_writing(error, path)
-        if full is None:
-            raise
-        raise full from error
-    return path
+    return replace_file(path, ds.to_netcdf)

@@ -51,7 +51,6 @@ has something to do (``[control] target_specific_volume`` below the gas's 1/init
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 from pathlib import Path
@@ -71,6 +70,7 @@ from tiv_model.command_line import (
     add_common_flags,
     error_line,
     int_in_range,
+    replace_file,
     run_command,
 )
 
@@ -153,18 +153,6 @@ def _run(args: argparse.Namespace) -> int:
         return _simulate(args, scene, run_dir, latest, cost)
 
 
-def _replace_file(target: Path, write) -> Path:
-    """``write(temporary)`` a file beside ``target``, then rename it onto ``target``: a reader
-    never sees half a file, and an existing link at ``target`` is replaced, never followed."""
-    temporary = target.with_name(f".{target.stem}.{os.getpid()}.tmp{target.suffix}")
-    try:
-        write(temporary)
-        os.replace(temporary, target)
-    finally:
-        temporary.unlink(missing_ok=True)
-    return target
-
-
 def _snapshot(args: argparse.Namespace) -> int:
     """``snapshot STATE.npz --out FILE.vtu``: the discs of a saved state for ParaView."""
     from dem_taichi.engine import Simulation
@@ -189,7 +177,7 @@ def _snapshot(args: argparse.Namespace) -> int:
     m = sim.measure()
     fields = {k: float(m[k]) for k in ("mean_stress", "deviatoric_stress", "specific_volume")}
     target.parent.mkdir(parents=True, exist_ok=True)
-    path = _replace_file(
+    path = replace_file(
         target,
         lambda temporary: write_simulation_snapshot(
             temporary, sim, stage=args.stage, fields=fields
@@ -232,7 +220,7 @@ def _simulate(
     if cost is not None and not args.quiet:  # once the engine is built: errors come first
         for line in cost_lines(cost):
             _say(line)
-    _replace_file(run_dir.output("scene.toml"), lambda t: t.write_text(scene_to_toml(scene)))
+    replace_file(run_dir.output("scene.toml"), lambda t: t.write_text(scene_to_toml(scene)))
     attrs = provenance_attrs(
         scene_toml=scene.source_text or scene_to_toml(scene),
         arch=sim.arch,

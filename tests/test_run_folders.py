@@ -344,7 +344,7 @@ def test_the_lock_is_released_after_an_error(tmp_path, monkeypatch, capsys):
     def broken(*args, **kwargs):
         raise ValueError("a writer failed")
 
-    monkeypatch.setattr(cli, "_replace_file", broken)
+    monkeypatch.setattr(cli, "replace_file", broken)
     out = tmp_path / "run"
     assert smoke_run(out) == EXIT_USAGE
     assert "a writer failed" in one_line(capsys.readouterr().err)
@@ -440,7 +440,7 @@ def no_space(*args, **kwargs):
 def test_a_full_disk_in_a_dem_run_is_exit_code_4(tmp_path, monkeypatch, capsys):
     import dem_taichi.cli as cli
 
-    monkeypatch.setattr(cli, "_replace_file", no_space)
+    monkeypatch.setattr(cli, "replace_file", no_space)
     out = tmp_path / "run"
     assert smoke_run(out) == EXIT_DISK_FULL == 4
     line = one_line(capsys.readouterr().err)

@@ -29,7 +29,6 @@ EDQUOT, one line; nothing half-written is left at ``--out``).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -38,9 +37,9 @@ from .command_line import (
     ArgumentParser,
     UsageError,
     add_common_flags,
-    disk_full_while_writing,
     int_in_range,
     positive_float,
+    replace_file,
     run_command,
 )
 from .errors import ParameterError, TivModelError
@@ -227,7 +226,7 @@ def _run(argv: list[str]) -> int:
         # e.g. the initial state itself is impossible (v < 1 at p0)
         raise UsageError(f"{type(exc).__name__}: {exc}") from exc
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    _write_replacing(ds, args.out)
+    replace_file(args.out, ds.to_netcdf)
     term = ds.attrs["termination"]
     if not args.quiet:
         last = ds.isel(step=-1)
@@ -241,24 +240,6 @@ def _run(argv: list[str]) -> int:
         print(f"{PROG}: path stopped early: {term}", file=sys.stderr)
         return 1
     return 0
-
-
-def _write_replacing(ds, target: Path) -> None:
-    """Write ``ds`` to a temporary file beside ``target`` and rename it onto ``target``: an
-    error (a full disk) leaves no half file, and a link at ``target`` is replaced, not
-    followed."""
-    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    try:
-        try:
-            ds.to_netcdf(temporary)
-        except RuntimeError as error:  # netCDF4 says "HDF error" when the disk is full
-            full = disk_full_while_writing(error, target)
-            if full is None:
-                raise
-            raise full from error
-        os.replace(temporary, target)
-    finally:
-        temporary.unlink(missing_ok=True)
 
 
 def main(argv: list[str] | None = None) -> int:

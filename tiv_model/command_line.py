@@ -28,7 +28,9 @@ import argparse
 import errno
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 
 __all__ = [
     "EXIT_OK",
@@ -42,6 +44,7 @@ __all__ = [
     "error_line",
     "disk_full_error",
     "disk_full_while_writing",
+    "replace_file",
     "run_command",
     "int_in_range",
     "positive_float",
@@ -128,6 +131,35 @@ def disk_full_while_writing(error: BaseException, path: str | os.PathLike[str]) 
         return None
     reason = f"{os.strerror(errno.ENOSPC)} (the writer said: {_text(error)})"
     return OSError(errno.ENOSPC, reason, os.fspath(path))
+
+
+def replace_file(target: str | os.PathLike[str], write: Callable[[Path], object]) -> Path:
+    """Write a command's output file atomically: ``write(temporary)`` fills a new file beside
+    ``target`` (made with O_EXCL, so no link can be there), which is then renamed onto
+    ``target``. A reader never sees half a file, an error (a full disk) leaves no file behind,
+    and a link at ``target`` is replaced, never written through. netCDF4's "HDF error" on a
+    full file system is raised as ``OSError`` ENOSPC (:func:`disk_full_while_writing`)."""
+    target = Path(target)
+    handle, name = tempfile.mkstemp(
+        dir=target.parent, prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}"
+    )
+    os.close(handle)
+    temporary = Path(name)
+    try:
+        try:
+            write(temporary)
+        except RuntimeError as error:
+            full = disk_full_while_writing(error, target)
+            if full is None:
+                raise
+            raise full from error
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(temporary, 0o666 & ~mask)  # mkstemp makes owner-only files
+        os.replace(temporary, target)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return target
 
 
 def error_line(prog: str, error: BaseException, kind: str = "error") -> str:

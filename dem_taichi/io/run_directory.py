@@ -484,7 +484,10 @@ _HELD: weakref.WeakSet = weakref.WeakSet()
 
 
 def _finish(folder: Path, record: RunRecord, lock: RunLock) -> None:
-    """Close a run: complete its manifest and release its lock (also the finalizer)."""
+    """Close a run: complete its manifest and release its lock (also the finalizer). Nothing
+    in a forked child: the run and its lock are the parent's."""
+    if os.getpid() != lock.data["pid"]:
+        return
     try:
         if folder.is_dir() and (folder / RUN_RECORD).is_file() and record.files is not None:
             _complete_manifest(folder, record)
