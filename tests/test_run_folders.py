@@ -525,3 +525,17 @@ def test_the_protocol_lists_its_files_and_overwrite_deletes_them(tmp_path, capsy
     assert "already holds run" in one_line(capsys.readouterr().err)
     start_run(out, "protocol", "smoke", SMOKE, overwrite=True).close()
     assert every_entry(out) == {"notes.txt", RUN_RECORD} and survived(mine)
+
+
+def test_the_lock_is_taken_where_hard_links_are_not_supported(tmp_path, monkeypatch):
+    def no_links(source, target):
+        raise OSError(errno.EPERM, "Operation not permitted", str(target))
+
+    monkeypatch.setattr(os, "link", no_links)
+    run = start_run(tmp_path / "run", "run", "smoke", SMOKE)
+    assert json.loads((tmp_path / "run" / RUN_LOCK).read_text())["pid"] == os.getpid()
+    with pytest.raises(RunLockedError, match="in use"):
+        start_run(tmp_path / "run", "run", "smoke", SMOKE, overwrite=True)
+    run.close()
+    assert not (tmp_path / "run" / RUN_LOCK).exists()
+    assert [p.name for p in (tmp_path / "run").iterdir()] == [RUN_RECORD]  # no temporary left

@@ -313,15 +313,23 @@ def _write_new_lock(path: Path, data: dict) -> bool:
         except OSError as error:  # a file system without hard links
             if error.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP):
                 raise
-            try:
-                os.rename(temp, path) if not path.exists() else None
-            except OSError:
-                return False
-            return path.exists() and _read_lock(path) == data
+            return _write_new_lock_exclusive(path, data)
         return True
     finally:
         with contextlib.suppress(OSError):
             os.unlink(temp)
+
+
+def _write_new_lock_exclusive(path: Path, data: dict) -> bool:
+    """Create the lock file with O_EXCL, then write it (where hard links are not supported:
+    a reader may then see it empty for a moment, and refuses it as unreadable)."""
+    try:
+        handle = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        return False
+    with os.fdopen(handle, "w") as stream:
+        stream.write(json.dumps(data) + "\n")
+    return True
 
 
 class RunLock:
