@@ -134,6 +134,16 @@ def test_overwrite_of_a_foreign_folder_with_checkpoints_is_refused(tmp_path, cap
     assert survived(*kept)
 
 
+@pytest.mark.parametrize("command", ["run", "protocol"])
+def test_a_fresh_run_never_replaces_a_file_with_a_run_name(tmp_path, capsys, command):
+    out = tmp_path / "mine"
+    report = sentinel(out / "report.md")  # e.g. the user's own notes, in a folder without a run
+    assert dem(command, "smoke", "--out", str(out), "--quiet") == EXIT_USAGE
+    line = one_line(capsys.readouterr().err)
+    assert "already holds files with the names a run writes (report.md) but no run.json" in line
+    assert survived(report) and not (out / RUN_RECORD).exists()
+
+
 def test_overwrite_of_a_record_from_before_manifests_is_refused(tmp_path, capsys):
     out = tmp_path / "old"
     run = start_run(out, "run", "smoke", SMOKE)

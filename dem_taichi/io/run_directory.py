@@ -15,8 +15,9 @@ claims its output directory: it takes the directory's lock (:data:`RUN_LOCK`) an
 
 Rules (issues 11 and 22):
 
-- a fresh run into a *used* directory (one holding ``run.json``, ``history.nc`` or
-  ``checkpoints/``) is refused (:class:`RunDirectoryError`) unless ``overwrite``: then the files
+- a fresh run into a *used* directory (one holding an entry with a name a run writes:
+  ``run.json``, ``history.nc``, ``checkpoints/``, ``report.md``, ...) is refused
+  (:class:`RunDirectoryError`) unless ``overwrite``: then the files
   of the old run's manifest are deleted (its folders too when they are left empty) and nothing
   else. ``overwrite`` is refused for a directory without ``run.json`` (or with one from before
   manifests), for the current folder, the home folder, ``/`` and any folder above them, and an
@@ -105,7 +106,6 @@ RUN_FILE_PATTERNS = (
     "resume",
     "paraview",
 )
-_USED_MARKERS = (RUN_RECORD, "history.nc", "checkpoints")
 
 
 class RunDirectoryError(ValueError):
@@ -175,11 +175,17 @@ def _read_record(directory: Path) -> RunRecord | None:
 
 
 def is_used(directory: str | os.PathLike[str]) -> bool:
-    """Whether ``directory`` holds a run (``run.json``, ``history.nc`` or ``checkpoints/``)."""
-    folder = Path(directory)
-    return folder.is_dir() and any(
-        (folder / name).exists() or (folder / name).is_symlink() for name in _USED_MARKERS
-    )
+    """Whether ``directory`` holds an entry with a name a run writes (:data:`RUN_FILE_PATTERNS`:
+    ``run.json``, ``history.nc``, ``checkpoints/``, ``report.md``, ...): a fresh run there would
+    replace it."""
+    return bool(_run_named(Path(directory)))
+
+
+def _run_named(folder: Path) -> list[str]:
+    """The names of the entries of ``folder`` that a run could write (links included)."""
+    if not folder.is_dir():
+        return []
+    return sorted(e.name for e in folder.iterdir() if _is_run_name(e.name))
 
 
 # ---- paths inside a run directory -------------------------------------------------------------
@@ -639,9 +645,22 @@ def _refuse_used(folder: Path, resume_hint: bool) -> RunDirectoryError:
     """The refusal of a used directory without ``overwrite``."""
     try:
         previous = _read_record(folder)
-        what = previous.describe() if previous else "the files of an earlier run"
     except RunDirectoryError:
-        what = "an unreadable run record"
+        return RunDirectoryError(
+            f"--out {folder} already holds an unreadable {RUN_RECORD}; a run needs a directory "
+            "of its own: choose a new --out; --overwrite deletes only what a readable "
+            f"{RUN_RECORD} lists"
+        )
+    if previous is None:
+        names = _run_named(folder)
+        shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+        resume = " (--resume continues a run from its checkpoints)" if resume_hint else ""
+        return RunDirectoryError(
+            f"--out {folder} already holds files with the names a run writes ({shown}) but no "
+            f"{RUN_RECORD}, so they are not known to be a run's: move them away or choose a new "
+            f"--out; --overwrite deletes only what a {RUN_RECORD} lists{resume}"
+        )
+    what = previous.describe()
     options = "add --overwrite to replace it"
     if resume_hint:
         options += ", or --resume to continue it"
