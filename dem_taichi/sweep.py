@@ -630,7 +630,8 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         "--dashboard", type=_no_control_characters("--dashboard"), default=None,
         metavar="ADDRESS",
         help="serve Dask's dashboard of the local cluster at ADDRESS, e.g. 127.0.0.1:8787 "
-        "(default: no dashboard, no HTTP route at all)",
+        "(':8787' listens on every interface: anyone on the network sees the cluster; "
+        "default: no dashboard, no HTTP route at all)",
     )  # fmt: skip
     run.add_argument(
         "--max-members", type=int_in_range(1), default=MAX_MEMBERS,

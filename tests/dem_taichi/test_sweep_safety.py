@@ -8,6 +8,7 @@ as soon as the member has started: ~15 s on this 2-core machine.
 from __future__ import annotations
 
 import json
+import shutil
 import signal
 import socket
 import subprocess
@@ -298,3 +299,84 @@ def test_a_sweep_record_naming_dotdot_is_refused_when_read(tmp_path):
         {"name": "..", "parameters": {}, "overrides": {}, "scene_sha256": "x"}]})  # fmt: skip
     with pytest.raises(SweepError, match="name = '..'"):
         open_sweep(tmp_path)
+
+
+def make_certificates(folder: Path) -> None:
+    """A CA signing a scheduler and a client certificate, and another CA signing a stranger's
+    (EC keys, for 127.0.0.1; one day)."""
+    key = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+
+    def openssl(*args: str) -> None:
+        subprocess.run(["openssl", *args], cwd=folder, check=True, capture_output=True)
+
+    for ca in ("ca", "other_ca"):
+        openssl("req", "-x509", *key, "-keyout", f"{ca}.key", "-out", f"{ca}.pem", "-days", "1",
+                "-subj", f"/CN={ca}")  # fmt: skip
+    (folder / "san.ext").write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
+    for who, ca in (("scheduler", "ca"), ("client", "ca"), ("stranger", "other_ca")):
+        openssl("req", *key, "-keyout", f"{who}.key", "-out", f"{who}.csr", "-subj", f"/CN={who}")
+        openssl(
+            "x509",
+            "-req",
+            "-in",
+            f"{who}.csr",
+            "-CA",
+            f"{ca}.pem",
+            "-CAkey",
+            f"{ca}.key",
+            "-CAcreateserial",
+            "-out",
+            f"{who}.pem",
+            "-days",
+            "1",
+            "-extfile",
+            "san.ext",
+        )
+
+
+@pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command")
+def test_tls_options_connect_only_with_a_certificate_of_the_ca(tmp_path):
+    """A TLS scheduler that requires encryption: the sweep's --tls-* options connect; plain
+    TCP and a certificate signed by another CA are refused."""
+    import argparse
+
+    from distributed import Client, LocalCluster
+    from distributed.security import Security
+
+    from dem_taichi.sweep import _cluster, _security
+
+    make_certificates(tmp_path)
+    files = {name: str(tmp_path / name) for name in (
+        "ca.pem", "scheduler.pem", "scheduler.key", "client.pem", "client.key", "stranger.pem",
+        "stranger.key")}  # fmt: skip
+    server = Security(
+        tls_ca_file=files["ca.pem"], require_encryption=True,
+        tls_scheduler_cert=files["scheduler.pem"], tls_scheduler_key=files["scheduler.key"],
+        tls_client_cert=files["scheduler.pem"], tls_client_key=files["scheduler.key"],
+    )  # fmt: skip
+    spec = sweep_from_toml(one_member("m1"))
+    with LocalCluster(n_workers=0, protocol="tls://", host="127.0.0.1", security=server,
+                      dashboard_address=None) as cluster:  # fmt: skip
+        address = cluster.scheduler_address
+        args = argparse.Namespace(
+            scheduler=address,
+            tls_ca_file=files["ca.pem"],
+            tls_cert=files["client.pem"],
+            tls_key=files["client.key"],
+        )
+        client, local, where = _cluster(address, None, spec, 1, security=_security(args))
+        try:
+            assert local is None and where == f"scheduler {address} (TLS)"
+            assert client.scheduler_info()["address"] == address
+        finally:
+            client.close()
+        with pytest.raises(OSError):
+            Client(address.replace("tls://", "tcp://"), timeout="3s")
+        stranger = Security(
+            tls_ca_file=files["ca.pem"],
+            tls_client_cert=files["stranger.pem"],
+            tls_client_key=files["stranger.key"],
+            require_encryption=True,
+        )
+        with pytest.raises(OSError):
+            Client(address, security=stranger, timeout="3s")
