@@ -2,8 +2,12 @@
 on stderr naming what is wrong (the words checked), and no traceback.
 
 Entry points: ``python -m dem_taichi run|protocol`` (:func:`dem_taichi.cli.main`),
-``python -m dem_taichi.protocol``, ``python -m tiv_model`` and ``python -m bridge.pipeline``,
-called in process (their ``main`` returns the exit code) and, for a few, as real processes.
+``python -m dem_taichi.protocol``, ``python -m dem_taichi.sweep``, ``python -m tiv_model`` and
+``python -m bridge.pipeline``, called in process (their ``main`` returns the exit code) and, for
+a few, as real processes. ``ISSUE22_CASES`` (issue 22) were accepted, or blamed on the wrong key,
+before: a ``--set`` with a line break, numbers that overflow (any scene key beyond 1e±12, TIV
+parameters beyond 1e8), k_t beyond what the time step resolves, non-UTF-8 files, unsafe sweep
+member names, wrongly shaped netCDF given to the bridge.
 """
 
 from __future__ import annotations
