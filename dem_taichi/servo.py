@@ -41,6 +41,7 @@ from dem_taichi.quasistatic import _control, strain_rate_cap
 
 __all__ = [
     "JACOBIAN_DIGITS",
+    "ModalGain",
     "SecantStiffness",
     "ServoMemory",
     "StressServo",
@@ -176,6 +177,61 @@ def rate_factor(factor: float, ufr: float, unbalanced_force_max: float) -> float
     return min(1.25 * factor, 1.0)
 
 
+class ModalGain:
+    """Gain factors of the servo's modes, halved where the loop overshoots (loose structures).
+
+    The servo's gain is the inverse of the linear-response stiffness C_a of the relaxed network
+    at the start of the target. On a loose, attraction-stabilised network (a fresh gel near A)
+    the network the servo then loads is far stiffer than C_a in some mode: measured on the
+    stalling state of issue 19 (default scene, F_max = 300, seed 11) the deviatoric tangent was
+    ~80 × that of C_a, so each servo update overshot the deviator by more than it corrected,
+    and the rates banged between the inertial-number caps with period two updates (σ_xx and
+    σ_yy ±9 % around the target, the cell not moving on average) for 2,000,000 steps.
+
+    The residual is split into modes: with two controls, the mean and the difference of the
+    two controlled stresses (for (σ_xx, σ_yy): p and q, controlled separately); with one, the
+    control itself. When a mode's residual changes sign between two updates without having
+    shrunk below half its former size, and it was above the stress tolerance, the loop is
+    unstable in that mode: its factor is halved (down to ``FLOOR``). A mode that does not
+    overshoot recovers ×``RECOVERY`` per update, up to 1 (the network may soften again, e.g.
+    when the gel collapses). The rate law becomes ε̇ = G B⁻¹ (f ∘ B r): r the residual in the
+    controlled space, m = B r its modes, f the factors, G the gain (W C_a)⁻¹/T. With all factors
+    1 this is G r, so a servo that never overshoots runs as before.
+    """
+
+    FLOOR = 1e-4
+    RECOVERY = 1.1
+
+    def __init__(self, n_controls: int) -> None:
+        if n_controls == 1:
+            self.basis, self.inverse = np.array([[1.0]]), np.array([[1.0]])
+        else:
+            self.basis = np.array([[0.5, 0.5], [-1.0, 1.0]])  # mean, difference
+            self.inverse = np.array([[1.0, -0.5], [1.0, 0.5]])
+        self.factors = np.ones(n_controls)
+        self.overshoots = 0
+        self._previous: np.ndarray | None = None
+
+    def restart(self) -> None:
+        """Forget the previous residual (after a relaxation at fixed cell)."""
+        self._previous = None
+
+    def scaled(self, residual: np.ndarray, tolerance: float) -> np.ndarray:
+        """Update the factors from this residual and return B⁻¹ (f ∘ B r). ``tolerance``: the
+        absolute stress below which a mode's residual counts as on target."""
+        modes = _matvec(self.basis, residual)
+        previous, self._previous = self._previous, modes
+        if previous is not None:
+            for k, (now, before) in enumerate(zip(modes, previous, strict=True)):
+                flipped = now * before < 0.0 and abs(before) > tolerance
+                if flipped and abs(now) > 0.5 * abs(before):
+                    self.factors[k] = max(0.5 * self.factors[k], self.FLOOR)
+                    self.overshoots += 1
+                else:
+                    self.factors[k] = min(self.RECOVERY * self.factors[k], 1.0)
+        return _matvec(self.inverse, self.factors * modes)
+
+
 @dataclass
 class ServoMemory:
     """What the servo keeps between its calls on one branch: the time constant T of each stage
@@ -239,8 +295,11 @@ class StressServo:
         measured since loading began in the current direction (:class:`SecantStiffness`).
         (A quasi-Newton correction between relaxed states was tried and dropped: on
         the smoke scene near A each correction triggers rearrangements and the relaxed stress
-        jumps by ±2 %, so it alternated around the target without converging.) Returns the
-        relaxed measures and the number of relaxations.
+        jumps by ±2 %, so it alternated around the target without converging.) Overshoot: the
+        residual is corrected mode by mode (:class:`ModalGain`: mean and deviator of two
+        controls), each mode's gain halved while it overshoots, so a network much stiffer than
+        C_a in one mode (a loose gel being loaded) does not bang between the rate caps. Returns
+        the relaxed measures and the number of relaxations.
         """
         c = self.config
         sim = self.sim
@@ -270,6 +329,8 @@ class StressServo:
         scale = np.abs(targets)
         residual = targets - _controlled(weights, measures)
         near_steps = 0  # steps since the residual first came near the target (or last doubling)
+        modal = ModalGain(len(targets))
+        tolerance = c.stress_tolerance * float(np.mean(scale))
         while steps < c.servo_max_steps:
             residual = targets - _controlled(weights, measures)
             ufr = measures["unbalanced_force_ratio"]
@@ -288,6 +349,7 @@ class StressServo:
                 )
                 if ok and np.all(np.abs(residual) <= c.stress_tolerance * scale):
                     return measures, checks
+                modal.restart()
                 continue
             if near_steps > 0 or np.all(np.abs(residual) <= c.servo_near_target * scale):
                 near_steps += c.servo_check_steps
@@ -312,7 +374,8 @@ class StressServo:
                 sim, measures["mean_stress"], c.pressure_tolerance, c.inertial_number_safety
             )
             rates = np.zeros(2)
-            rates[control_axes] = np.clip(_matvec(gain, residual), -rate_cap, rate_cap)
+            corrected = modal.scaled(residual, tolerance)
+            rates[control_axes] = np.clip(_matvec(gain, corrected), -rate_cap, rate_cap)
             measures = sim.run(
                 c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
             )

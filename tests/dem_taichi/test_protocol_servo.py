@@ -172,3 +172,60 @@ def test_secant_estimate_restarts_on_overshoot():
     )
     assert est.update(np.array([10.5]), np.array([5.0]), np.array([4.5]), scale) == 0.01
     assert est.update(np.array([15.2]), np.array([5.1]), np.array([-0.2]), scale) == 1.0
+
+
+class StiffenedPlant(DelayedPlant):
+    """A network far stiffer in its deviatoric mode than the servo's stiffness (a loose gel
+    loaded beyond A, issue 19: ~80 × measured there): σ = C ε with C − C_guess = k [[1, −1],
+    [−1, 1]], so the deviatoric stiffness C_xx − C_xy is 80 × the guess's and the mean one the
+    same; a one-step delay (a stable loop for the right gain). It starts off the isotropic axis
+    (σ = (10, 9)) so the deviatoric mode is loaded."""
+
+    DELAY = 1
+
+    def __init__(self, stress0: float) -> None:
+        super().__init__(stress0)
+        guess = self.stiffness  # the servo's fallback guess [[20, 5], [5, 20]] p
+        k = 79.0 * (guess[0, 0] - guess[0, 1]) / 2.0
+        self.stiffness = guess + k * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        start = np.linalg.solve(self.stiffness, [stress0, 0.9 * stress0])
+        self.strain_history = [start] * (self.DELAY + 1)
+
+
+def test_servo_converges_where_the_network_is_far_stiffer_than_its_gain():
+    """The servo corrects its gain mode by mode where it overshoots (ModalGain) and reaches the
+    targets at a relaxed state, in a fraction of the budget."""
+    runner, plant, measures, _ = servo_on_delayed_plant(400_000, StiffenedPlant)
+    tol = runner.config.stress_tolerance
+    assert abs(measures["stress_xx"] / 15.0 - 1) <= tol
+    assert abs(measures["stress_yy"] / 15.0 - 1) <= tol
+    assert plant.step < 100_000
+
+
+def test_without_the_modal_correction_the_servo_bangs_between_its_caps(monkeypatch):
+    """The plant is a real test: with the residual passed through unchanged (the servo before
+    issue 19's fix) the rates bang between the caps and the targets are never reached."""
+    from dem_taichi.servo import ModalGain
+
+    monkeypatch.setattr(ModalGain, "scaled", lambda self, residual, tolerance: residual)
+    with pytest.raises(ProtocolError, match="not reached"):
+        servo_on_delayed_plant(400_000, StiffenedPlant)
+
+
+def test_modal_gain_halves_an_overshooting_mode_only():
+    """Mean and difference modes: a deviator that flips sign without shrinking halves the
+    deviatoric factor; the mean, approaching monotonically, stays at 1; a mode within the
+    tolerance never counts as overshooting; one control is its own mode."""
+    from dem_taichi.servo import ModalGain
+
+    gain = ModalGain(2)
+    r = gain.scaled(np.array([1.0, 3.0]), tolerance=1e-3)  # p-mode 2, q-mode 2
+    assert r == pytest.approx([1.0, 3.0])  # factors 1: the residual itself
+    gain.scaled(np.array([1.9, -0.1]), tolerance=1e-3)  # q flips 2 → −2: overshoot
+    assert gain.factors.tolist() == [1.0, 0.5] and gain.overshoots == 1
+    gain.scaled(np.array([0.8, 0.6]), tolerance=1e-3)  # q −2 → −0.2: shrank, no flip
+    assert gain.factors.tolist() == [1.0, pytest.approx(0.55)]
+    tiny = ModalGain(1)
+    tiny.scaled(np.array([1e-4]), tolerance=1e-3)
+    tiny.scaled(np.array([-1e-4]), tolerance=1e-3)
+    assert tiny.factors.tolist() == [1.0] and tiny.overshoots == 0
