@@ -22,12 +22,11 @@ branch process behind.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from pathlib import Path
 
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import ProtocolConfig, probing_settings, protocol_settings
-from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog
+from dem_taichi.protocol_records import BranchOutcome, ProtocolError, RelaxedState, RunLog
 from dem_taichi.protocol_resume import (
     RecordingWriter,
     ResumeFileError,
@@ -82,17 +81,6 @@ class _RecordList(list):
     def append(self, frame: dict) -> int:  # type: ignore[override]
         super().append(dict(frame))
         return len(self)
-
-
-@dataclass
-class BranchOutcome:
-    """What one branch run in its own process hands back to
-    :func:`dem_taichi.protocol.run_protocol`: its history records and its log (without A,
-    which the run's log holds)."""
-
-    branch: str
-    history: list[dict]
-    log: RunLog
 
 
 def run_branch(

@@ -28,7 +28,14 @@ import numpy as np
 from dem_taichi.analysis import Transition
 from dem_taichi.measures import Measures
 
-__all__ = ["ProtocolError", "RelaxedState", "StageRecord", "RunLog", "ProtocolResult"]
+__all__ = [
+    "ProtocolError",
+    "RelaxedState",
+    "StageRecord",
+    "RunLog",
+    "BranchOutcome",
+    "ProtocolResult",
+]
 
 
 class ProtocolError(RuntimeError):
@@ -145,6 +152,18 @@ class RunLog:
         for stage, seconds in branch.probing_seconds_by_stage.items():
             by_stage = self.probing_seconds_by_stage
             by_stage[stage] = by_stage.get(stage, 0.0) + seconds
+
+
+@dataclass
+class BranchOutcome:
+    """What one branch run in its own process hands back to
+    :func:`dem_taichi.protocol.run_protocol` (:mod:`dem_taichi.branches`): its history records and
+    its log (without A, which the run's log holds). Here, below the branches, so the resume
+    files (:mod:`dem_taichi.resume_codec`) can name it without importing the runners."""
+
+    branch: str
+    history: list[dict]
+    log: RunLog
 
 
 @dataclass

@@ -8,7 +8,7 @@ from A (:mod:`dem_taichi.branches`: A→B; A→C with C→B; each radial path). 
   the run's log at A (:class:`dem_taichi.protocol_records.RunLog`, with the probes at A), the
   engine state at A and the wall time so far;
 - ``branch_<k>.npz`` when the k-th branch has finished: its
-  :class:`dem_taichi.branches.BranchOutcome` (history records and log), written by the process
+  :class:`dem_taichi.protocol_records.BranchOutcome` (history records and log), written by the process
   that ran it.
 
 A resume (``python -m dem_taichi protocol SCENE --out DIR --resume``, or ``run_protocol(...,
@@ -290,8 +290,7 @@ def load_branches(run: RunIdentity, branches: list[str]) -> dict[str, object]:
     """The saved outcomes of ``branches`` (by name) of ``run``, for those whose file exists;
     refuses (:class:`ResumeFileError`) a file that is damaged, not this run's, or of another
     branch."""
-    from dem_taichi.branches import BranchOutcome
-    from dem_taichi.protocol_records import RunLog
+    from dem_taichi.protocol_records import BranchOutcome, RunLog
 
     done = {}
     for index, name in enumerate(branches):

@@ -46,10 +46,9 @@ def _known_types() -> dict[str, type]:
     """The dataclasses a resume file may hold, by name: the only classes :func:`decode`
     builds. Imported here, not at module level: the records import this package's modules."""
     from dem_taichi.analysis import Plateau, Transition
-    from dem_taichi.branches import BranchOutcome
     from dem_taichi.linear_response import LinearResponse, SolverInfo
     from dem_taichi.probing import DegradationCurve, ProbeResult
-    from dem_taichi.protocol_records import RelaxedState, RunLog, StageRecord
+    from dem_taichi.protocol_records import BranchOutcome, RelaxedState, RunLog, StageRecord
 
     types = (
         RunLog, StageRecord, RelaxedState, Transition, Plateau, DegradationCurve, ProbeResult,
