@@ -65,7 +65,7 @@ import weakref
 from dataclasses import asdict, dataclass, field
 from pathlib import Path, PurePosixPath
 
-from .checkpoint import list_checkpoints
+from .checkpoint import latest_intact_checkpoint, list_checkpoints
 
 __all__ = [
     "RUN_RECORD",
@@ -573,10 +573,14 @@ class RunDirectory:
         return self.path / rel
 
     def latest_checkpoint(self) -> Path | None:
-        """The run's own checkpoint of the greatest step that exists, or None."""
+        """The run's own checkpoint of the greatest step that exists and loads whole, or None.
+
+        A damaged newer one (flipped byte, cut short) is passed over with one note naming it
+        and the older checkpoint used (:func:`~dem_taichi.io.checkpoint.latest_intact_checkpoint`).
+        """
         own = set(self.record.checkpoints)
         found = [p for p in list_checkpoints(self.checkpoint_dir) if p.name in own]
-        return found[-1] if found else None
+        return latest_intact_checkpoint(found, _note)
 
     def add_checkpoint(self, path: str | os.PathLike[str], keep: int = 2) -> list[Path]:
         """Record a checkpoint just written and delete the run's own older ones beyond ``keep``.
@@ -813,7 +817,12 @@ def _resumed(folder: Path, scene_name: str, given: str, checkpoint_scene_toml, l
             f"--resume: {record.describe()} in {folder} has no checkpoint yet; start it again "
             "with --overwrite"
         )
-    latest = found[-1]
+    latest = latest_intact_checkpoint(found, _note)
+    if latest is None:
+        raise RunDirectoryError(
+            f"--resume: no checkpoint of {record.describe()} in {folder} loads whole (each "
+            "damaged one is named above); start it again with --overwrite"
+        )
     stored = scene_sha256(checkpoint_scene_toml(latest))
     if stored != record.scene_sha256:
         raise RunDirectoryError(

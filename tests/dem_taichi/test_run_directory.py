@@ -213,3 +213,28 @@ def test_interrupt_writes_a_checkpoint_and_resume_continues_bitwise(tmp_path):
     s = reference.set_index(time="step").sel(time=common)
     for name in ("mean_stress", "specific_volume", "coordination_number"):
         assert np.array_equal(r[name].values, s[name].values), name
+
+
+def test_cli_resume_falls_back_past_a_damaged_newest_checkpoint(tmp_path, capsys):
+    """Issue 22: a damaged newest checkpoint (a flipped byte) does not stop ``run --resume``:
+    it continues from the older intact one and says so in one line naming both."""
+    from dem_taichi.cli import main
+
+    scene = tmp_path / "smoke.toml"
+    scene.write_text(scene_to_toml(load_scene("smoke").replace(output={"checkpoint_every": 200})))
+    out = tmp_path / "run"
+    assert main(["run", str(scene), "--out", str(out), "--steps", "600", "--no-progress"]) == 0
+    record = json.loads((out / RUN_RECORD).read_text())
+    older, newest = (out / "checkpoints" / name for name in record["checkpoints"])
+    assert older.name.endswith("400.npz") and newest.name.endswith("600.npz")
+    data = bytearray(newest.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # inside an array's data: its CRC fails
+    newest.write_bytes(bytes(data))
+    capsys.readouterr()
+    argv = ["run", str(scene), "--out", str(out), "--steps", "800", "--resume", "--no-progress"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    notes = [line for line in captured.err.splitlines() if str(newest) in line]
+    assert len(notes) == 1 and f"falling back to {older}" in notes[0], captured.err
+    assert f"resuming from {older} at step 400" in captured.out
+    assert load_checkpoint(latest_checkpoint(out / "checkpoints"))[1]["step"] == 800
