@@ -37,7 +37,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from .series import SeriesError
+from .series import HISTORY_REQUIRED, PROBES_REQUIRED, SeriesError, check_layout
 
 __all__ = ["replica_runs", "replica_mean", "calibrate_replicas", "parameter_spread"]
 
@@ -122,19 +122,41 @@ def _mean_dataset(datasets: list[xr.Dataset], dim: str, key, names: list[str]) -
     return mean
 
 
+def _checked_replica(path: Path, names: tuple[str, ...], record_dim: str) -> xr.Dataset:
+    """A replica's dataset, checked before the means read it: the variables ``names`` present,
+    numeric, 1-D along the record dimension ``record_dim``; :class:`SeriesError` naming the file
+    otherwise (a wrongly shaped file was a KeyError deep in the means)."""
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError) as error:
+        raise SeriesError(
+            f"replica file {path} is not a readable netCDF dataset ({error}); give the folders "
+            "of protocol runs"
+        ) from error
+    what = f"replica file {path}"
+    dim = check_layout(ds, names, what)
+    if dim != record_dim:
+        raise SeriesError(
+            f"{what}: its variables are along {dim!r}, not {record_dim!r} as a protocol run "
+            "writes them; give the folders of protocol runs"
+        )
+    return ds
+
+
 def replica_mean(runs: list[Path]) -> tuple[xr.Dataset, xr.Dataset | None]:
     """The record-by-record means of the replicas' ``relaxed_states.nc`` and ``probes.nc``
     (None when a run has no probes). The stage codes must be the same in every run."""
     from dem_taichi.io.schema import STAGE_LABELS
 
     names = [r.name for r in runs]
-    relaxed = [xr.load_dataset(r / RELAXED) for r in runs]
+    relaxed = [_checked_replica(r / RELAXED, HISTORY_REQUIRED, "time") for r in runs]
     history = _mean_dataset(
         relaxed, "time", lambda ds, i: STAGE_LABELS.get(int(ds["stage"].values[i]), "?"), names
     )
     if not all((r / PROBES).exists() for r in runs):
         return history, None
-    probes = [xr.load_dataset(r / PROBES) for r in runs]
+    wanted = PROBES_REQUIRED + ("state_label",)
+    probes = [_checked_replica(r / PROBES, wanted, "probe") for r in runs]
 
     def probe_key(ds, i):
         label = str(ds["state_label"].values[i])

@@ -90,3 +90,35 @@ def test_command_line_replicas(tmp_path, replicas, capsys):
     code = main(["--replicas", str(replicas[0]), "--out", str(tmp_path / "one")])
     assert code == 2
     assert "at least two runs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "fault",
+    ["2-D stress", "other record dimension", "missing stage", "text", "probes without path"],
+)
+def test_a_wrongly_shaped_replica_is_one_line_naming_the_file(tmp_path, replicas, capsys, fault):
+    """Issue 22: a replica's netCDF of the wrong shape was 'internal error: time (KeyError)';
+    now one line, exit code 2, naming the replica file."""
+    bad, _ = replica(tmp_path / "bad", seed=5)
+    name = "probes.nc" if fault == "probes without path" else "relaxed_states.nc"
+    path = bad / name
+    ds = xr.load_dataset(path)
+    if fault == "2-D stress":
+        ds["stress_xx"] = (("time", "k"), np.stack([ds["stress_xx"].values] * 2, axis=1))
+    elif fault == "other record dimension":
+        ds = ds.rename({"time": "record"})
+    elif fault == "missing stage":
+        ds = ds.drop_vars("stage")
+    elif fault == "text":
+        ds["specific_volume"] = ("time", np.array(["x"] * ds.sizes["time"], dtype=object))
+    else:
+        ds = ds.drop_vars("path")
+    path.unlink()
+    ds.to_netcdf(path)
+    capsys.readouterr()
+    argv = ["--replicas", str(replicas[0]), str(bad), "--out", str(tmp_path / "cli"), "--quiet"]
+    assert main([*argv, "--no-figures", "--no-identifiability"]) == 2
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err and "internal error" not in err, err
+    assert str(path) in lines[0], err
