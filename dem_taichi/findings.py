@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,17 @@ from scipy import stats
 from dem_taichi.analysis import fabric_sampling_noise
 from dem_taichi.io import open_history, open_probes
 from dem_taichi.io.schema import stage_code
+from dem_taichi.mapped_window import (
+    STUDY_REFERENCE_KPA,
+    STUDY_WINDOW_KPA,
+    densification_sensitivity,
+    local_compressibility,
+    moduli_exponent,
+    specific_volume_at,
+    specific_volume_rectangle,
+    stress_scale_from_stiffness,
+    windowed_compressibility,
+)
 from dem_taichi.report import compressibility_slope
 
 __all__ = [
@@ -34,6 +46,8 @@ __all__ = [
     "run_findings",
     "state_findings",
     "mean_interval",
+    "mapped_window_findings",
+    "stress_scale_interval",
 ]
 
 #: Measures of a labelled state taken from ``summary.json`` (history names).
@@ -68,7 +82,8 @@ def run_findings(folder: str | Path) -> dict:
     ``k0_fabric``, ``k0_p``, ``lambda_star`` and ``r2`` (ln v – ln p fit over A and A→B),
     ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``, ``fabric_C``, ``k0_C`` (σ_xx/σ_yy at C),
     ``modulus_exponent`` (n of E_v ∝ p^n on A→B), ``ev_over_p_B``, ``seconds``, ``workers``;
-    ``anisotropy_C`` when the folder holds ``anisotropy.json``.
+    ``anisotropy_C`` when the folder holds ``anisotropy.json``; and the findings on the mapped
+    stress window (:func:`mapped_window_findings`).
     """
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
@@ -79,10 +94,9 @@ def run_findings(folder: str | Path) -> dict:
     k0 = stage == stage_code("A_to_C")
     states = summary["states"]
     n = int(summary["n_rods"])
-    fit = compressibility_slope(
-        np.r_[_state(states, "A", "mean_stress"), relaxed["mean_stress"].values[iso]],
-        np.r_[_state(states, "A", "specific_volume"), relaxed["specific_volume"].values[iso]],
-    )
+    path_p = np.r_[_state(states, "A", "mean_stress"), relaxed["mean_stress"].values[iso]]
+    path_v = np.r_[_state(states, "A", "specific_volume"), relaxed["specific_volume"].values[iso]]
+    fit = compressibility_slope(path_p, path_v)
     if probes is not None and probes.sizes.get("probe", 0):
         path = probes["path"].values.astype(str)
         labels = probes["state_label"].values.astype(str)
@@ -137,11 +151,103 @@ def run_findings(folder: str | Path) -> dict:
         "seconds": summary["total_seconds"],
         "workers": summary.get("workers", 1),
     }
+    row.update(mapped_window_findings(summary, relaxed.attrs, probes, path_p, path_v))
     aniso = folder / "anisotropy.json"
     if aniso.exists():
         rows = {r["state"]: r for r in json.loads(aniso.read_text())}
         row["anisotropy_C"] = rows.get("C")
     return row
+
+
+def _rod_shape(attrs) -> tuple[int, float, float] | None:
+    """(n_spheres, spacing, diameter) of the rods from the run's effective scene (the history's
+    attribute ``scene_toml_effective``); None when the attribute is missing."""
+    text = attrs.get("scene_toml_effective")
+    if not text:
+        return None
+    particles = tomllib.loads(str(text))["particles"]
+    return int(particles["n_spheres"]), float(particles["spacing"]), float(particles["diameter"])
+
+
+def _probe_moduli(probes, label: str) -> tuple[float, float]:
+    """(E_oed,v, E_oed,h) of the last probe of the labelled state; NaN when not probed."""
+    if probes is None or not probes.sizes.get("probe", 0):
+        return _NAN, _NAN
+    at = np.flatnonzero(probes["state_label"].values.astype(str) == label)
+    if not at.size:
+        return _NAN, _NAN
+    i = at[-1]
+    return float(probes["e_oed_v_linear"].values[i]), float(probes["e_oed_h_linear"].values[i])
+
+
+def mapped_window_findings(summary: dict, attrs, probes, iso_p, iso_v) -> dict:
+    """The findings on the mapped stress window (:mod:`dem_taichi.mapped_window`, issue 19).
+
+    ``summary`` (``summary.json``), ``attrs`` (the relaxed states' attributes: the effective
+    scene), ``probes`` (the probes dataset or None), ``iso_p``/``iso_v`` (p in DEM units and v of
+    state A and the relaxed states of A→B, in path order). Keys:
+
+    - ``stress_scale_kpa_measured``: 100/p* kPa per DEM unit, p* the DEM stress at which
+      E_oed,v/p = 125 on the probes of A→B (state A included), interpolated, never
+      extrapolated; NaN (``stress_scale_reason`` says why) when no pair brackets 125;
+      ``p_star`` = p*;
+    - ``stress_scale_kpa_used`` and ``stress_scale_source``: the measured scale ("measured")
+      when it exists, else the scene's ``[protocol] stress_scale_kpa`` ("scene");
+    - ``lambda_window``, ``lambda_window_se``, ``n_window_points``: λ* = −d ln v/d ln p over the
+      states of A and A→B with 1 ≤ p ≤ 200 kPa (least squares, standard error, points);
+    - ``exponent_window_v``/``exponent_window_h``: n of E_oed,v/E_oed,h ∝ p^n over the probes of
+      A and A→B in that window; ``n_exponent_points``;
+    - ``N_disc``/``N_rectangle``: v at 100 kPa along A→B (ln v – ln p interpolation; NaN unless
+      bracketed) with v as the DEM counts it (disc-union rod area) and with the rod as its
+      rectangle L × d;
+    - ``densification_sensitivity_v``/``_h``: ln(E_B′/E_B)/ln(v_B′/v_B) of E_oed,v/E_oed,h;
+    - ``local_lambda_p_kpa``, ``local_lambda``: the local −d ln v/d ln p between consecutive
+      states of A and A→B at their mid-points √(p_k p_k+1) in kPa (lists).
+    """
+    states = summary.get("states", {})
+    scene_scale = float(summary.get("stress_scale_kpa", attrs.get("stress_scale_kpa", 1.0)))
+    if probes is not None and probes.sizes.get("probe", 0):
+        path = probes["path"].values.astype(str)
+        labels = probes["state_label"].values.astype(str)
+        on_iso = (path == "A_to_B") | (labels == "A")
+        p = probes["mean_stress"].values[on_iso]
+        e_v = probes["e_oed_v_linear"].values[on_iso]
+        e_h = probes["e_oed_h_linear"].values[on_iso]
+    else:
+        p = e_v = e_h = np.array([], dtype=float)
+    measured = stress_scale_from_stiffness(p, e_v)
+    found = bool(np.isfinite(measured.kpa_per_unit))
+    scale = measured.kpa_per_unit if found else scene_scale
+    iso_p_kpa = np.asarray(iso_p, dtype=float) * scale
+    window = windowed_compressibility(iso_p_kpa, iso_v, STUDY_WINDOW_KPA)
+    exp_v = moduli_exponent(p * scale, e_v, STUDY_WINDOW_KPA)
+    exp_h = moduli_exponent(p * scale, e_h, STUDY_WINDOW_KPA)
+    n_disc = specific_volume_at(iso_p_kpa, iso_v, STUDY_REFERENCE_KPA)
+    shape = _rod_shape(attrs)
+    n_rect = specific_volume_rectangle(n_disc, *shape) if shape is not None else _NAN
+    ev_b, eh_b = _probe_moduli(probes, "B")
+    ev_bp, eh_bp = _probe_moduli(probes, "B'")
+    v_b, v_bp = _state(states, "B", "specific_volume"), _state(states, "B'", "specific_volume")
+    p_mid, local = local_compressibility(iso_p_kpa, iso_v)
+    return {
+        "stress_scale_kpa_measured": measured.kpa_per_unit,
+        "p_star": measured.p_star,
+        "stress_scale_reason": measured.reason,
+        "stress_scale_kpa_used": scale,
+        "stress_scale_source": "measured" if found else "scene",
+        "lambda_window": window.slope,
+        "lambda_window_se": window.se,
+        "n_window_points": window.n,
+        "exponent_window_v": exp_v.slope,
+        "exponent_window_h": exp_h.slope,
+        "n_exponent_points": exp_v.n,
+        "N_disc": n_disc,
+        "N_rectangle": n_rect,
+        "densification_sensitivity_v": densification_sensitivity(ev_b, ev_bp, v_b, v_bp),
+        "densification_sensitivity_h": densification_sensitivity(eh_b, eh_bp, v_b, v_bp),
+        "local_lambda_p_kpa": [float(x) for x in p_mid],
+        "local_lambda": [float(x) for x in local],
+    }
 
 
 def state_findings(folder: str | Path) -> dict[str, dict[str, float]]:
@@ -179,3 +285,19 @@ def mean_interval(values, confidence: float = 0.95) -> tuple[float, float, int]:
         return float(x[0]), _NAN, 1
     t = stats.t.ppf(0.5 + confidence / 2.0, x.size - 1)
     return float(x.mean()), float(t * x.std(ddof=1) / math.sqrt(x.size)), int(x.size)
+
+
+def stress_scale_interval(scales, confidence: float = 0.95) -> tuple[float, float, float, int]:
+    """Replica statistics of measured stress scales (kPa per DEM unit), in log space.
+
+    The scale is a ratio of units, so the interval is taken on ln(scale): the mean m and the
+    Student-t half-width h of ln(scale) (:func:`mean_interval`) give the geometric mean exp(m)
+    and the interval (exp(m − h), exp(m + h)), asymmetric about it. Returns (geometric mean,
+    low, high, number of finite positive values); low/high NaN below two values.
+    """
+    x = np.asarray(scales, dtype=float).ravel()
+    x = x[np.isfinite(x) & (x > 0)]
+    mean, half, n = mean_interval(np.log(x), confidence)
+    if n == 0:
+        return _NAN, _NAN, _NAN, 0
+    return math.exp(mean), math.exp(mean - half), math.exp(mean + half), n
