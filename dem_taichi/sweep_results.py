@@ -48,7 +48,23 @@ RUN_SCALARS = (
     ("max_inertial_number", "max_i", "largest inertial number on the paths from A"),
     ("fabric_noise", "noise", "fabric sampling noise sqrt(0.5/N)"),
     ("wall_seconds", "seconds", "wall time of the member's protocol run"),
-)
+    # the mapped stress window (dem_taichi.mapped_window, issue 19)
+    ("stress_scale_kpa_measured", "stress_scale_kpa_measured",
+     "kPa per DEM stress unit: 100 / p* where E_oed,v / p = 125 on A-B"),
+    ("stress_scale_kpa_used", "stress_scale_kpa_used",
+     "kPa per DEM stress unit mapping p (measured, else the scene's)"),
+    ("lambda_window", "lambda_window", "lambda* = -d ln v / d ln p, 1 <= p <= 200 kPa on A-B"),
+    ("lambda_window_se", "lambda_window_se", "standard error of lambda_window"),
+    ("n_window_points", "n_window_points", "states of A and A-B in 1 <= p <= 200 kPa"),
+    ("exponent_window_v", "exponent_window_v", "n of E_oed,v proportional to p^n, 1-200 kPa"),
+    ("exponent_window_h", "exponent_window_h", "n of E_oed,h proportional to p^n, 1-200 kPa"),
+    ("N_disc", "N_disc", "v at 100 kPa on A-B (disc-union rod area)"),
+    ("N_rectangle", "N_rectangle", "v at 100 kPa on A-B (rod as rectangle L x d)"),
+    ("densification_sensitivity_v", "densification_sensitivity_v",
+     "ln(E_oed,v B' / B) / ln(v B' / B)"),
+    ("densification_sensitivity_h", "densification_sensitivity_h",
+     "ln(E_oed,h B' / B) / ln(v B' / B)"),
+)  # fmt: skip
 _STATE_ORDER = ("A", "B", "C", "B'")
 _PROBE_ATTRS = {"e_oed_v": "e_oed_v_linear", "e_oed_h": "e_oed_h_linear"}
 
@@ -235,6 +251,14 @@ def _findings_rows(ds: xr.Dataset) -> list[tuple[str, np.ndarray]]:
         ("lambda_star", "λ* (A→B)"),
         ("modulus_exponent", "n: E_v ∝ p^n (A→B)"),
         ("e_oed_v_over_p_at_B", "E_v/p at B"),
+        ("stress_scale_kpa_measured", "kPa per DEM unit (E_v/p = 125)"),
+        ("lambda_window", "λ* (1–200 kPa)"),
+        ("exponent_window_v", "n: E_v ∝ p^n (1–200 kPa)"),
+        ("exponent_window_h", "n: E_h ∝ p^n (1–200 kPa)"),
+        ("N_disc", "N: v at 100 kPa (disc union)"),
+        ("N_rectangle", "N: v at 100 kPa (rectangle L×d)"),
+        ("densification_sensitivity_v", "ln(E_v B′/B)/ln(v B′/B)"),
+        ("densification_sensitivity_h", "ln(E_h B′/B)/ln(v B′/B)"),
         ("mean_stress_at_A", "p at A"),
         ("isotropic_fabric_max", "max abs fabric on A→B"),
         ("max_inertial_number", "max I on the paths"),
