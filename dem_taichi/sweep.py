@@ -434,6 +434,8 @@ def run_sweep(
             count = f"({finished}/{len(to_run)})"
             if record["status"] == "done":
                 say(f"{stamp()} {m.name}: done in {record['seconds']:.1f} s {count}")
+            elif record["status"] == "skipped":  # its folder's run lock is held by a live run
+                say(f"{stamp()} {m.name}: SKIPPED: {record['error']} {count}")
             else:
                 say(f"{stamp()} {m.name}: FAILED: {record['error']} {count}")
     finally:

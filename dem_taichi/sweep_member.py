@@ -19,7 +19,6 @@ import datetime as _dt
 import io
 import json
 import os
-import shutil
 import socket
 import tempfile
 import threading
@@ -163,6 +162,32 @@ def can_resume(out: Path, scene_sha256: str) -> bool:
     )
 
 
+def _clear_unfinished(out: Path, name: str, command: str, sha: str) -> dict | None:
+    """Before a member runs again in its folder ``out``: take the folder's run lock and, when
+    the run cannot resume, delete that run's files by its manifest (``run.json``: what
+    ``--overwrite`` deletes), nothing else. A folder locked by a live process (the member
+    still running elsewhere) is left alone: the member is skipped, and the returned record
+    (status ``skipped``, not written to ``member.json``, which is that process's) says why in
+    one line. None when the member may run."""
+    import sys
+
+    from dem_taichi.io.run_directory import RunLock, RunLockedError, delete_listed
+
+    try:
+        lock = RunLock.acquire(out, f"{command} (clearing member {name})")
+    except RunLockedError as error:
+        line = f"member {name}: skipped, its folder is in use ({error})"
+        print(line, file=sys.stderr, flush=True)
+        return {"name": name, "status": "skipped", "error": line, "scene_sha256": sha,
+                "seconds": 0.0, "finished": now()}  # fmt: skip
+    try:
+        if not can_resume(out, sha):
+            delete_listed(out, lock)
+    finally:
+        lock.release()  # the protocol takes it again for the run
+    return None
+
+
 def run_member(
     name: str,
     scene_toml: str,
@@ -177,7 +202,10 @@ def run_member(
 
     An unfinished run of the member in ``run_dir`` (one whose ``member.json`` is not ``done``)
     resumes from its saved state A and finished branches when it has them and the same scene
-    (:mod:`dem_taichi.protocol_resume`); else it is deleted and the protocol starts afresh.
+    (:mod:`dem_taichi.protocol_resume`); else the files its ``run.json`` lists are deleted (with
+    the folder's run lock held; nothing else in the folder) and the protocol starts afresh. A
+    folder whose run lock a live process holds is not touched: the record returned has status
+    ``skipped`` (one line in ``error``) and ``member.json`` is left as it is.
     Returns the member record written to ``run_dir/member.json``: status ``done`` or
     ``failed`` (with ``error``, one line, and ``traceback``), ``seconds``, ``worker``,
     ``started``, ``finished``, ``resumed``. Never raises for a failure of the run itself.
@@ -196,9 +224,11 @@ def run_member(
         if out.exists() and any(out.iterdir()):
             if old is None or old.get("status") == "done":
                 raise SweepError(f"{out} holds a run this sweep did not leave unfinished")
+            skipped = _clear_unfinished(out, name, command, sha)
+            if skipped is not None:
+                publish("skipped", skipped["error"])
+                return skipped
             resume = can_resume(out, sha)
-            if not resume:
-                shutil.rmtree(out)
         out.mkdir(parents=True, exist_ok=True)
         record: dict[str, Any] = {
             "name": name,

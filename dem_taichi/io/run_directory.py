@@ -82,6 +82,7 @@ __all__ = [
     "reopen_run",
     "is_used",
     "release_all",
+    "delete_listed",
 ]
 
 RUN_RECORD = "run.json"
@@ -490,6 +491,21 @@ def _delete_manifest(folder: Path, record: RunRecord) -> None:
             kept.append(rel)
     if kept:
         _note(f"kept {', '.join(kept)} in {folder}: they hold files the old run did not write")
+
+
+def delete_listed(directory: str | os.PathLike[str], lock: RunLock) -> bool:
+    """Delete the run of ``directory`` as ``--overwrite`` does: the files and folders its
+    ``run.json`` lists (a folder kept when it holds other files), nothing else. ``lock``: the
+    directory's lock, held by the caller (:meth:`RunLock.acquire`). Returns False when there is
+    no ``run.json`` (nothing is deleted); refused (:class:`RunDirectoryError`) for a record from
+    before manifests or one naming paths outside the folder."""
+    folder = Path(directory)
+    if lock.path != folder / RUN_LOCK or _read_lock(lock.path) != lock.data:
+        raise RunDirectoryError(f"{folder}: delete_listed needs the folder's own lock, held")
+    if _read_record(folder) is None:
+        return False
+    _delete_manifest(folder, _old_record_to_replace(folder))
+    return True
 
 
 # ---- the claimed directory ----------------------------------------------------------------

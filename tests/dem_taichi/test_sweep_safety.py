@@ -133,6 +133,72 @@ def test_a_linked_members_folder_is_refused(tmp_path):
     assert (elsewhere / "m1" / SENTINEL).exists()
 
 
+def failed_run(tmp_path: Path) -> tuple[Path, Member]:
+    """A member folder whose first run failed: a run record listing history.nc and a
+    checkpoint, and the user's SENTINEL beside them (not in the manifest)."""
+    from dem_taichi.io.run_directory import start_run
+
+    member = sweep_from_toml(one_member("m1")).members[0]
+    folder = tmp_path / "sweep" / "members" / "m1"
+    with start_run(folder, "protocol", "smoke", member.scene_toml) as run:
+        run.output("history.nc").write_text("old run")
+        (folder / "checkpoints").mkdir()
+        run.output("checkpoints/checkpoint_000000000100.npz").write_text("old run")
+    failed_record(folder, member)
+    (folder / SENTINEL).write_text("keep me")
+    return folder, member
+
+
+def fake_protocol(seen: list):
+    """A stand-in for run_protocol that notes what the member folder holds when it starts."""
+
+    class Result:
+        states = {"A": None}
+
+    def run_protocol(scene, out, **kwargs):
+        seen.append(sorted(str(p.relative_to(out)) for p in Path(out).rglob("*")))
+        return Result()
+
+    return run_protocol
+
+
+def test_a_failed_member_is_cleared_by_its_manifest_under_its_lock(tmp_path, monkeypatch):
+    """Issue 22: the re-run of a failed member deleted its whole folder (shutil.rmtree); now
+    the files its run.json lists go (with the folder's lock held) and the user's file stays."""
+    folder, member = failed_run(tmp_path)
+    seen: list = []
+    monkeypatch.setattr("dem_taichi.protocol.run_protocol", fake_protocol(seen))
+    record = run_member("m1", member.scene_toml, str(folder), sweep_dir=str(tmp_path / "sweep"))
+    assert record["status"] == "done", record
+    assert (folder / SENTINEL).read_text() == "keep me"
+    assert seen == [[SENTINEL, "member.json", "progress.log"]]
+    assert not (folder / "run.lock").exists()
+
+
+def test_a_member_folder_locked_by_a_live_process_is_skipped_untouched(
+    tmp_path, monkeypatch, capsys
+):
+    folder, member = failed_run(tmp_path)
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        lock = {"pid": live.pid, "host": socket.gethostname(), "started": "now",
+                "command": "protocol", "token": "other"}  # fmt: skip
+        (folder / "run.lock").write_text(json.dumps(lock))
+        before = sorted(p.name for p in folder.rglob("*"))
+        seen: list = []
+        monkeypatch.setattr("dem_taichi.protocol.run_protocol", fake_protocol(seen))
+        record = run_member("m1", member.scene_toml, str(folder), sweep_dir=str(tmp_path / "sweep"))
+    finally:
+        live.kill()
+        live.wait()
+    assert record["status"] == "skipped" and seen == []
+    assert sorted(p.name for p in folder.rglob("*")) == before
+    assert json.loads((folder / "member.json").read_text())["status"] == "failed"
+    assert json.loads((folder / "run.lock").read_text())["pid"] == live.pid
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and "member m1: skipped" in err[0] and str(live.pid) in err[0], err
+
+
 # -- size ----------------------------------------------------------------------------------------
 def test_a_grid_of_a_hundred_million_members_is_refused_at_once(tmp_path, capsys):
     values = "[" + ", ".join(str(i) for i in range(100)) + "]"
