@@ -6,6 +6,8 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 OUT    ?= results
+# test processes for `make test` (pytest-xdist; one per core by default, 0 to run in-process)
+TEST_WORKERS ?= auto
 
 .PHONY: demo test test-slow test-all bench lint cf-check clean
 
@@ -21,7 +23,7 @@ demo: $(STAMP)
 	$(PY) scripts/demo.py --out $(OUT)
 
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow
