@@ -95,7 +95,9 @@ def _log_crossing(x: np.ndarray, y: np.ndarray, target: float) -> float:
         a, b = ly[k] - lt, ly[k + 1] - lt
         if a == 0.0:
             return float(x[k])
-        if a * b < 0.0 or b == 0.0:
+        if b == 0.0:
+            return float(x[k + 1])
+        if a * b < 0.0:
             t = a / (a - b)
             return float(math.exp(lx[k] + t * (lx[k + 1] - lx[k])))
     return _NAN
@@ -133,10 +135,13 @@ def stress_scale_from_stiffness(
         )
     if x.size < 2 or np.ptp(np.log(x)) == 0.0:
         return StressScale(_NAN, _NAN, "none", f"too few distinct states to extrapolate ({span})")
-    slope, intercept = np.polyfit(np.log(x), np.log(ratio), 1)
-    if slope == 0.0:
+    if np.ptp(np.log(ratio)) == 0.0:
         return StressScale(_NAN, _NAN, "none", f"E_v/p does not vary with p ({span})")
-    p_star = math.exp((math.log(target_ratio) - intercept) / slope)
+    slope, intercept = np.polyfit(np.log(x), np.log(ratio), 1)
+    log_p_star = (math.log(target_ratio) - intercept) / slope
+    if not abs(log_p_star) < 700.0:  # exp would overflow: the line (nearly) never reaches it
+        return StressScale(_NAN, _NAN, "none", f"the log-log line misses the target ({span})")
+    p_star = math.exp(log_p_star)
     return StressScale(reference_kpa / p_star, p_star, "extrapolated")
 
 
