@@ -1,0 +1,111 @@
+"""The study's-clay pilots (issue 19) over seeds: did the servo converge, and what material is it.
+
+Usage::
+
+    python benchmarks/study_clay_pilots.py RUNS_DIR [--out benchmarks/results/study_clay_pilots]
+
+RUNS_DIR holds finished or failed protocol runs named ``<cell>_s<seed>`` (one folder per run,
+as written by the commands in the output's header); runs of one cell are replicas. For every
+cell: how many runs converged (a run that stops on a servo failure writes no
+``summary.json``), and mean ± 95 % (Student t) over its converged seeds of the findings read by
+:func:`dem_taichi.findings.run_findings`: v at A, λ* from A to B (ln v – ln p, DEM stresses),
+λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured where
+E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
+C − B, N under both specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import re
+from pathlib import Path
+
+from dem_taichi.findings import mean_interval, run_findings
+
+HERE = Path(__file__).resolve().parent
+
+#: (column, label, digits) of the per-cell table.
+COLUMNS = (
+    ("v_A", "v_A", 3),
+    ("lambda_star", "λ* A→B (DEM p)", 3),
+    ("lambda_window", "λ* 1–200 kPa", 3),
+    ("exponent_window_v", "E_v ∝ p^n, 1–200 kPa", 3),
+    ("modulus_exponent", "E_v ∝ p^n on A→B", 3),
+    ("ev_over_p_B", "E_v/p at B", 3),
+    ("stress_scale_kpa_measured", "kPa per DEM unit (E_v/p = 125)", 3),
+    ("k0_C", "K0 at C", 3),
+    ("ratio_B", "E_h/E_v at B", 3),
+    ("ratio_C", "E_h/E_v at C", 3),
+    ("ratio_C_minus_B", "C − B", 3),
+    ("N_disc", "N (disc area)", 3),
+    ("N_rectangle", "N (rod rectangle)", 3),
+    ("minutes", "wall (min)", 2),
+)
+
+
+def _last(values) -> float:
+    values = list(values or [])
+    return float(values[-1]) if values else math.nan
+
+
+def run_row(folder: Path) -> dict:
+    """The findings of one run folder, or ``converged = False`` when it has no summary."""
+    cell, seed = re.fullmatch(r"(.+)_s(\d+)", folder.name).groups()
+    row: dict = {"cell": cell, "seed": int(seed), "converged": False}
+    if not (folder / "summary.json").exists():
+        return row
+    f = run_findings(folder)
+    row.update({k: v for k, v in f.items() if isinstance(v, int | float)})
+    row["converged"] = True
+    row["ratio_B"] = _last(f["iso_ratio"])
+    row["ratio_C"] = _last(f["k0_ratio"])
+    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
+    row["minutes"] = f["seconds"] / 60.0
+    return row
+
+
+def summarise(rows: list[dict]) -> tuple[str, list[dict]]:
+    """Markdown table and csv rows: per cell, converged count and mean ± 95 % per column."""
+    cells = sorted({r["cell"] for r in rows})
+    header = "| cell | converged | " + " | ".join(c[1] for c in COLUMNS) + " |"
+    lines = [header, "|" + "---|" * (len(COLUMNS) + 2)]
+    table = []
+    for cell in cells:
+        runs = [r for r in rows if r["cell"] == cell]
+        done = [r for r in runs if r["converged"]]
+        seeds = ",".join(str(r["seed"]) for r in sorted(runs, key=lambda r: r["seed"]))
+        out = {"cell": cell, "seeds": seeds, "converged": f"{len(done)}/{len(runs)}"}
+        cols = []
+        for key, _label, digits in COLUMNS:
+            values = [r.get(key, math.nan) for r in done]
+            values = [v for v in values if math.isfinite(v)]
+            mean, half, n = mean_interval(values) if values else (math.nan, math.nan, 0)
+            out[key], out[f"{key}_ci95"], out[f"{key}_n"] = mean, half, n
+            cols.append(f"{mean:.{digits}g} ± {half:.{digits}g}" if n > 1 else f"{mean:.{digits}g}")
+        table.append(out)
+        lines.append(f"| {cell} (seeds {seeds}) | {out['converged']} | " + " | ".join(cols) + " |")
+    return "\n".join(lines) + "\n", table
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", type=Path, help="folder of <cell>_s<seed> run folders")
+    parser.add_argument("--out", type=Path, default=HERE / "results" / "study_clay_pilots")
+    args = parser.parse_args(argv)
+    folders = sorted(p for p in args.runs.iterdir() if p.is_dir() and re.search(r"_s\d+$", p.name))
+    rows = [run_row(p) for p in folders]
+    text, table = summarise(rows)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.with_suffix(".md").write_text(text)
+    with args.out.with_suffix(".csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(table[0]) if table else ["cell"])
+        writer.writeheader()
+        writer.writerows(table)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
