@@ -363,7 +363,12 @@ def test_run_findings_falls_back_to_the_scene_scale(tmp_path):
 
 def test_sweep_dataset_and_summary_carry_the_new_findings(tmp_path):
     """open_sweep takes the new scalars of each finished member; the table shows them."""
-    from dem_taichi.sweep_results import open_sweep, replica_statistics, summary_table
+    from dem_taichi.sweep_results import (
+        open_sweep,
+        replica_statistics,
+        summarise_sweep,
+        summary_table,
+    )
 
     out = tmp_path / "sweep"
     members = []
@@ -386,3 +391,8 @@ def test_sweep_dataset_and_summary_carry_the_new_findings(tmp_path):
     found = stats_["all members"]["findings"]
     assert found["λ* (1–200 kPa)"]["mean"] == pytest.approx(0.25, abs=1e-12)
     assert "N: v at 100 kPa (rectangle L×d)" in summary_table(ds, stats_)
+    files = summarise_sweep(out)
+    numbers = json.loads(open(files["statistics"]).read())["all members"]["findings"]
+    assert numbers["ln(E_v B′/B)/ln(v B′/B)"]["mean"] == pytest.approx(-2.5, rel=1e-12)
+    with xr.open_dataset(files["dataset"]) as saved:
+        assert float(saved["N_disc"][0]) == pytest.approx(1.30, rel=1e-12)
