@@ -10,6 +10,10 @@ sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy −
 E_oed,h/E_oed,v > 1, growing; ln v linear in ln p beyond A (slope −λ*); K0 = σ_xx/σ_yy at C;
 the moduli ∝ p^n along A→B (the study: n ≈ 0.8) and E_v/p at B (≈ 125). Moduli are the
 linear-response ones. A run without some path or without probes gives NaN for what it lacks.
+On the mapped stress window (:func:`mapped_window_findings`, :mod:`dem_taichi.mapped_window`):
+the stress scale measured where E_v/p = 125 (the study's 100 kPa), λ* and the moduli exponents
+over 1–200 kPa, N (v at 100 kPa) under the disc-union and the rectangle rod areas, and the
+densification sensitivity ln(E_B′/E_B)/ln(v_B′/v_B).
 
 Symbols: p = (σ_xx + σ_yy)/2, q = σ_yy − σ_xx (DEM units), v specific volume, β_yy − β_xx rod
 fabric deviator, E_oed,v = ∂σ_yy/∂ε_yy and E_oed,h = ∂σ_xx/∂ε_xx (constrained moduli), λ*.
