@@ -8,8 +8,8 @@ from A (:mod:`dem_taichi.branches`: A→B; A→C with C→B; each radial path). 
   the run's log at A (:class:`dem_taichi.protocol_records.RunLog`, with the probes at A), the
   engine state at A and the wall time so far;
 - ``branch_<k>.npz`` when the k-th branch has finished: its
-  :class:`dem_taichi.protocol_records.BranchOutcome` (history records and log), written by the process
-  that ran it.
+  :class:`dem_taichi.protocol_records.BranchOutcome` (history records and log), written by the
+  process that ran it.
 
 A resume (``python -m dem_taichi protocol SCENE --out DIR --resume``, or ``run_protocol(...,
 resume=True)``) checks the run's record (the same scene, by hash: :func:`dem_taichi.io.
