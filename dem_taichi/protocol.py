@@ -178,150 +178,155 @@ def run_protocol(
         )
     if resume:
         run_dir = reopen_run(out_dir, "protocol", scene.scene.name, scene_to_toml(scene))
-        refuse_pickles(run_dir.path)
-        identity = RunIdentity.of(run_dir)
-        saved_a = load_stage_a(identity)
-        done = load_branches(identity, branch_names(config)) if saved_a is not None else {}
     else:
         run_dir = start_run(
             out_dir, "protocol", scene.scene.name, scene_to_toml(scene), overwrite=overwrite
         )
-        identity = RunIdentity.of(run_dir)
-        saved_a, done = None, {}
-    out = run_dir.path
-    effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
-    log = RunLog()  # the one log of the run: the runner and the probe recorder write it
-    result = ProtocolResult(
-        out_dir=out,
-        scene_name=scene.scene.name,
-        pattern=effective_pattern,
-        n_rods=scene.particles.n_rods,
-        arch=arch,
-        precision=precision,
-        stress_scale_kpa=config.stress_scale_kpa,
-        log=log,
-    )
-    import taichi as ti  # after the checks above: a bad input is refused without waiting for it
-
-    attrs = provenance_attrs(
-        scene.source_text or scene_to_toml(scene),
-        arch,
-        precision,
-        scene.scene.seed,
-        command,
-        taichi_version=".".join(str(x) for x in ti.__version__),
-        title="DEM virtual experiments of 2D rod-shaped clay particles: protocol history",
-    )
-    attrs["scene_toml_effective"] = scene_to_toml(scene)
-    attrs["charge_pattern"] = effective_pattern
-    attrs["run_id"] = run_dir.run_id
-    attrs["stress_scale_kpa"] = config.stress_scale_kpa
-    attrs["stress_scale"] = f"one DEM stress unit (force/length) = {config.stress_scale_kpa:g} kPa"
-    attrs["strain_reference"] = (
-        "cell at the start of the run until state A, then the cell at state A"
-    )
-    sim = Simulation(scene, arch=arch, precision=precision)
-    if progress:  # once the engine is built: its errors come first
-        for line in cost_lines(cost):
-            print(line, file=sys.stderr, flush=True)
-    recorder = ProbeRecorder(probing, config, log)
-    attrs["rod_model"] = scene.particles.rod_model
-    variables = sim.history_variables
-    history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20, variables=variables)
-    relaxed_attrs = dict(attrs, title=attrs["title"].replace("history", "relaxed path states"))
-    relaxed = HistoryWriter(
-        out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1, variables=variables
-    )
-    recording, recording_relaxed = RecordingWriter(history), RecordingWriter(relaxed)
-    runner = ProtocolRunner(
-        sim, config, probing, recording, recording_relaxed, recorder, progress, log=log
-    )
-    runner.out_dir = out
-    branches = branch_names(config)
-    try:
-        if saved_a is None:
-            recording.append(sim.measure() | {"stage": "gas"})
-            runner.compress_to_transition()
-            save_stage_a(
-                identity,
-                StageA(
-                    recording.records,
-                    recording_relaxed.records,
-                    log,
-                    runner.state_A,
-                    time.perf_counter() - start,
-                ),
-            )
+    with run_dir:  # manifest completed, lock released when this returns or raises
+        if resume:
+            refuse_pickles(run_dir.path)
+            identity = RunIdentity.of(run_dir)
+            saved_a = load_stage_a(identity)
+            done = load_branches(identity, branch_names(config)) if saved_a is not None else {}
         else:
-            start -= saved_a.seconds  # the wall time counts the run's time up to A
-            _restore_stage_a(runner, saved_a, history, relaxed)
-            runner._say(
-                f"[resume] from state A; branches done: {', '.join(done) or 'none'}; to run: "
-                + (", ".join(b for b in branches if b not in done) or "none")
-            )
-        runner.history, runner.relaxed_writer = history, relaxed
-        if workers == 1 or len(branches) < 2:
-            for index, branch in enumerate(branches):
-                if branch in done:
-                    merge_branch(runner, history, relaxed, done[branch])
-                else:
-                    run_branch_saved(runner, branch, index, identity)
-        else:
-            run_branches_in_processes(
-                runner, history, relaxed, branches, workers, arch, precision, progress, identity,
-                done,
-            )  # fmt: skip
-    finally:
-        history.close()
-        relaxed.close()
-    # stage wall times exclude the probes (timed apart by the recorder)
-    for label, path in log.checkpoints.items():
-        result.files[f"state_{label}"] = path
-    result.files["history"] = str(out / "history.nc")
-    result.files["relaxed_states"] = str(out / "relaxed_states.nc")
-    # configurations at the labelled states, taken when they were reached
-    for label, state in log.states.items():
-        positions, angles, lengths = log.configurations[label]
-        m = state.measures
-        geo = sim.geometry
-        path = out / f"configuration_{_file_label(label)}.nc"
-        write_configuration(
-            path,
-            positions,
-            angles,
-            lengths,
-            attrs={
-                "title": f"DEM configuration at state {label}",
-                "state_label": label,
-                "path": state.stage,
-                "step": int(m["step"]),
-                "mean_stress": float(m["mean_stress"]),
-                "deviatoric_stress": float(m["deviatoric_stress"]),
-                "specific_volume": float(m["specific_volume"]),
-                "fabric_deviator": float(m["fabric_deviator"]),
-                "n_spheres": int(geo.n_spheres),
-                "rod_model": scene.particles.rod_model,
-                "spacing": float(geo.spacing),
-                "diameter": float(geo.diameter),
-                "charge_pattern": effective_pattern,
-                "stress_scale_kpa": float(config.stress_scale_kpa),
-            },
+            identity = RunIdentity.of(run_dir)
+            saved_a, done = None, {}
+        out = run_dir.path
+        effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
+        log = RunLog()  # the one log of the run: the runner and the probe recorder write it
+        result = ProtocolResult(
+            out_dir=out,
+            scene_name=scene.scene.name,
+            pattern=effective_pattern,
+            n_rods=scene.particles.n_rods,
+            arch=arch,
+            precision=precision,
+            stress_scale_kpa=config.stress_scale_kpa,
+            log=log,
         )
-        result.files[f"configuration_{label}"] = str(path)
-    _write_paraview(out, log)
-    if log.snapshots:
-        result.files["paraview"] = str(out / "paraview" / "states.pvd")
-    if log.probes:
-        probe_attrs = dict(attrs, title="DEM elastic probes at states of the loading paths")
-        ds = probes_dataset(log.probes, recorder.amplitudes, probing, probe_attrs)
-        write_dataset(out / "probes.nc", ds)
-        result.files["probes"] = str(out / "probes.nc")
-    result.workers = min(workers, len(branches)) if len(branches) > 1 else 1
-    result.total_seconds = time.perf_counter() - start
-    _write_figures_and_report(result, sim)
-    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
-    result.files["summary"] = str(out / "summary.json")
-    return result
+        import taichi as ti  # after the checks above: a bad input is refused without waiting for it
+
+        attrs = provenance_attrs(
+            scene.source_text or scene_to_toml(scene),
+            arch,
+            precision,
+            scene.scene.seed,
+            command,
+            taichi_version=".".join(str(x) for x in ti.__version__),
+            title="DEM virtual experiments of 2D rod-shaped clay particles: protocol history",
+        )
+        attrs["scene_toml_effective"] = scene_to_toml(scene)
+        attrs["charge_pattern"] = effective_pattern
+        attrs["run_id"] = run_dir.run_id
+        attrs["stress_scale_kpa"] = config.stress_scale_kpa
+        attrs["stress_scale"] = (
+            f"one DEM stress unit (force/length) = {config.stress_scale_kpa:g} kPa"
+        )
+        attrs["strain_reference"] = (
+            "cell at the start of the run until state A, then the cell at state A"
+        )
+        sim = Simulation(scene, arch=arch, precision=precision)
+        if progress:  # once the engine is built: its errors come first
+            for line in cost_lines(cost):
+                print(line, file=sys.stderr, flush=True)
+        recorder = ProbeRecorder(probing, config, log)
+        attrs["rod_model"] = scene.particles.rod_model
+        variables = sim.history_variables
+        history = HistoryWriter(out / "history.nc", attrs=attrs, sync_every=20, variables=variables)
+        relaxed_attrs = dict(attrs, title=attrs["title"].replace("history", "relaxed path states"))
+        relaxed = HistoryWriter(
+            out / "relaxed_states.nc", attrs=relaxed_attrs, sync_every=1, variables=variables
+        )
+        recording, recording_relaxed = RecordingWriter(history), RecordingWriter(relaxed)
+        runner = ProtocolRunner(
+            sim, config, probing, recording, recording_relaxed, recorder, progress, log=log
+        )
+        runner.out_dir = out
+        branches = branch_names(config)
+        try:
+            if saved_a is None:
+                recording.append(sim.measure() | {"stage": "gas"})
+                runner.compress_to_transition()
+                save_stage_a(
+                    identity,
+                    StageA(
+                        recording.records,
+                        recording_relaxed.records,
+                        log,
+                        runner.state_A,
+                        time.perf_counter() - start,
+                    ),
+                )
+            else:
+                start -= saved_a.seconds  # the wall time counts the run's time up to A
+                _restore_stage_a(runner, saved_a, history, relaxed)
+                runner._say(
+                    f"[resume] from state A; branches done: {', '.join(done) or 'none'}; to run: "
+                    + (", ".join(b for b in branches if b not in done) or "none")
+                )
+            runner.history, runner.relaxed_writer = history, relaxed
+            if workers == 1 or len(branches) < 2:
+                for index, branch in enumerate(branches):
+                    if branch in done:
+                        merge_branch(runner, history, relaxed, done[branch])
+                    else:
+                        run_branch_saved(runner, branch, index, identity)
+            else:
+                run_branches_in_processes(
+                    runner, history, relaxed, branches, workers, arch, precision, progress,
+                    identity, done,
+                )  # fmt: skip
+        finally:
+            history.close()
+            relaxed.close()
+        # stage wall times exclude the probes (timed apart by the recorder)
+        for label, path in log.checkpoints.items():
+            result.files[f"state_{label}"] = path
+        result.files["history"] = str(out / "history.nc")
+        result.files["relaxed_states"] = str(out / "relaxed_states.nc")
+        # configurations at the labelled states, taken when they were reached
+        for label, state in log.states.items():
+            positions, angles, lengths = log.configurations[label]
+            m = state.measures
+            geo = sim.geometry
+            path = out / f"configuration_{_file_label(label)}.nc"
+            write_configuration(
+                path,
+                positions,
+                angles,
+                lengths,
+                attrs={
+                    "title": f"DEM configuration at state {label}",
+                    "state_label": label,
+                    "path": state.stage,
+                    "step": int(m["step"]),
+                    "mean_stress": float(m["mean_stress"]),
+                    "deviatoric_stress": float(m["deviatoric_stress"]),
+                    "specific_volume": float(m["specific_volume"]),
+                    "fabric_deviator": float(m["fabric_deviator"]),
+                    "n_spheres": int(geo.n_spheres),
+                    "rod_model": scene.particles.rod_model,
+                    "spacing": float(geo.spacing),
+                    "diameter": float(geo.diameter),
+                    "charge_pattern": effective_pattern,
+                    "stress_scale_kpa": float(config.stress_scale_kpa),
+                },
+            )
+            result.files[f"configuration_{label}"] = str(path)
+        _write_paraview(out, log)
+        if log.snapshots:
+            result.files["paraview"] = str(out / "paraview" / "states.pvd")
+        if log.probes:
+            probe_attrs = dict(attrs, title="DEM elastic probes at states of the loading paths")
+            ds = probes_dataset(log.probes, recorder.amplitudes, probing, probe_attrs)
+            write_dataset(out / "probes.nc", ds)
+            result.files["probes"] = str(out / "probes.nc")
+        result.workers = min(workers, len(branches)) if len(branches) > 1 else 1
+        result.total_seconds = time.perf_counter() - start
+        _write_figures_and_report(result, sim)
+        (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
+        result.files["summary"] = str(out / "summary.json")
+        return result
 
 
 def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) -> None:

@@ -238,3 +238,41 @@ def test_cli_resume_falls_back_past_a_damaged_newest_checkpoint(tmp_path, capsys
     assert len(notes) == 1 and f"falling back to {older}" in notes[0], captured.err
     assert f"resuming from {older} at step 400" in captured.out
     assert load_checkpoint(latest_checkpoint(out / "checkpoints"))[1]["step"] == 800
+
+
+# ---- run_protocol holds its folder's lock only while it runs ------------------------------
+
+
+def test_run_protocol_releases_its_lock_when_it_raises_and_when_it_returns(tmp_path, monkeypatch):
+    """Issue 22: the protocol's run folder was released only at garbage collection (a caught
+    error's traceback kept it locked); now when run_protocol raises or returns, without
+    gc.collect() (the collector is off here)."""
+    import gc
+
+    from dem_taichi.protocol import run_protocol
+    from dem_taichi.paths import ProtocolRunner
+
+    from .test_protocol import smoke_protocol_scene
+
+    def stop(runner):
+        raise RuntimeError("made to fail")
+
+    scene = smoke_protocol_scene(radial_stress_ratios="", run_unloading=False)
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        with monkeypatch.context() as patch:
+            patch.setattr(ProtocolRunner, "compress_to_transition", stop)
+            with pytest.raises(RuntimeError, match="made to fail") as raised:
+                run_protocol(scene, tmp_path / "raises")
+        assert raised.value is not None  # the traceback (and its frames) still alive
+        assert (tmp_path / "raises" / RUN_RECORD).exists()
+        assert not (tmp_path / "raises" / "run.lock").exists()
+        result = run_protocol(scene, tmp_path / "returns")
+        assert result.states and (tmp_path / "returns" / "summary.json").exists()
+        assert not (tmp_path / "returns" / "run.lock").exists()
+        listed = json.loads((tmp_path / "returns" / RUN_RECORD).read_text())["files"]
+        assert {"summary.json", "history.nc", "report.md"} <= set(listed)
+    finally:
+        if enabled:
+            gc.enable()
