@@ -22,7 +22,6 @@ Definitions (DEM units; pairs as in :class:`dem_taichi.snapshot.NetworkSnapshot`
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from dataclasses import asdict, dataclass
@@ -127,22 +126,49 @@ def _row(label: str, a: NetworkAnisotropy) -> dict:
     return row
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m dem_taichi.anisotropy RUN_DIR``: table of the labelled states' checkpoints."""
-    parser = argparse.ArgumentParser(
-        prog="python -m dem_taichi.anisotropy",
+PROG = "python -m dem_taichi.anisotropy"
+OUTPUT = "anisotropy.json"
+
+
+def _parser():
+    from tiv_model.command_line import ArgumentParser, add_common_flags
+
+    parser = ArgumentParser(
+        prog=PROG,
         description="Fabrics and affine stiffness of the interaction network at the labelled "
-        "states (state_*.npz) of a protocol run; writes anisotropy.json beside them.",
+        f"states (state_*.npz) of a protocol run; writes {OUTPUT} beside them.",
     )
     parser.add_argument("run_dir", help="output folder of python -m dem_taichi protocol")
-    args = parser.parse_args(argv)
-    from dem_taichi.engine import Simulation
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help=f"replace an existing RUN_DIR/{OUTPUT} (else refused)",
+    )
+    add_common_flags(parser)
+    return parser
 
+
+def _table(argv: list[str]) -> int:
+    from tiv_model.command_line import UsageError, replace_file
+
+    args = _parser().parse_args(argv)
     folder = Path(args.run_dir)
+    if not folder.is_dir():
+        raise UsageError(f"{folder}: no such folder; give the output folder of a protocol run")
     order = {"A": 0, "B": 1, "C": 2, "B_prime": 3}
     paths = sorted(folder.glob("state_*.npz"), key=lambda p: order.get(p.stem[6:], 9))
     if not paths:
-        parser.error(f"no state_*.npz in {folder}")
+        raise UsageError(f"no state_*.npz in {folder}; give the output folder of a protocol run")
+    target = folder / OUTPUT
+    if target.is_dir() and not target.is_symlink():
+        raise UsageError(f"{target} is a folder; move it away to write the table")
+    if (target.exists() or target.is_symlink()) and not args.overwrite:
+        raise UsageError(
+            f"{target} exists; add --overwrite to replace it (a link is replaced, never its "
+            "target), or move it away"
+        )
+    from dem_taichi.engine import Simulation
+
     rows = []
     for path in paths:
         label = path.stem[6:].replace("_prime", "'")
@@ -160,8 +186,19 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['affine_ratio_contact']:.3f} | {r['affine_ratio']:.3f} | "
             f"{r['contact_share_v']:.3f} |"
         )
-    (folder / "anisotropy.json").write_text(json.dumps(rows, indent=2))
+    replace_file(target, lambda temporary: temporary.write_text(json.dumps(rows, indent=2)))
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m dem_taichi.anisotropy RUN_DIR [--overwrite]``: table of the labelled states'
+    checkpoints, written to ``RUN_DIR/anisotropy.json`` (atomically; an existing file, or a link
+    there, is refused unless ``--overwrite``, which replaces the link, never its target). Errors
+    are one line, exit code 2 (:func:`tiv_model.command_line.run_command`)."""
+    from dem_taichi.io import CheckpointError
+    from tiv_model.command_line import run_command
+
+    return run_command(PROG, _table, argv, user_errors=(CheckpointError,))
 
 
 if __name__ == "__main__":

@@ -62,3 +62,70 @@ def test_oblique_long_range_pairs_split_by_direction():
     assert a.long_range_normal_deviator == pytest.approx(n[1] ** 2 - n[0] ** 2)
     assert a.affine_ratio == pytest.approx((n[0] * 0.3) ** 2 / (n[1] * 1.2) ** 2)
     assert a.contact_share_v == pytest.approx(0.0)
+
+
+# ---- the command line's output file (issue 22) -----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def state_folder(tmp_path_factory):
+    """A folder with one labelled state (the smoke scene's gas, saved as state_A.npz)."""
+    from dem_taichi.config import load_scene
+    from dem_taichi.engine import Simulation
+
+    folder = tmp_path_factory.mktemp("anisotropy")
+    Simulation(load_scene("smoke")).save_checkpoint(folder / "state_A.npz")
+    return folder
+
+
+def _one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_an_existing_table_is_refused_unless_overwrite(state_folder, capsys):
+    import json
+
+    from dem_taichi.anisotropy import main
+
+    target = state_folder / "anisotropy.json"
+    target.unlink(missing_ok=True)
+    assert main([str(state_folder), "--quiet"]) == 0
+    assert json.loads(target.read_text())[0]["state"] == "A"
+    target.write_text("the user's edits")
+    capsys.readouterr()
+    assert main([str(state_folder)]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert str(target) in line and "--overwrite" in line
+    assert target.read_text() == "the user's edits"
+    assert main([str(state_folder), "--overwrite"]) == 0
+    assert json.loads(target.read_text())[0]["state"] == "A"
+    assert not [p for p in state_folder.iterdir() if p.name.startswith(".")]  # no temporary
+
+
+def test_a_link_as_the_table_is_refused_and_replaced_never_written_through(
+    state_folder, tmp_path, capsys
+):
+    from dem_taichi.anisotropy import main
+
+    precious = tmp_path / "precious.json"
+    precious.write_text("keep me")
+    target = state_folder / "anisotropy.json"
+    target.unlink(missing_ok=True)
+    target.symlink_to(precious)
+    try:
+        assert main([str(state_folder)]) == 2
+        assert "--overwrite" in _one_line(capsys.readouterr().err)
+        assert target.is_symlink() and precious.read_text() == "keep me"
+        assert main([str(state_folder), "--overwrite"]) == 0
+        assert not target.is_symlink() and precious.read_text() == "keep me"
+    finally:
+        target.unlink(missing_ok=True)
+
+
+def test_a_folder_without_states_is_one_line(tmp_path, capsys):
+    from dem_taichi.anisotropy import main
+
+    assert main([str(tmp_path)]) == 2
+    assert "no state_*.npz" in _one_line(capsys.readouterr().err)
