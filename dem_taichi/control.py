@@ -3,6 +3,11 @@
 ε̇ = −L̇/L, compression positive, 0 = the axis held; the engine applies it exactly
 (L = L_0 exp(−ε̇ t)). Stresses are held by the protocol's servo
 (:class:`dem_taichi.servo.StressServo`), which sets these rates; the engine has none of its own.
+
+``minimise``: the caller asks for a relaxation to a static state at fixed cell (rates 0). The
+engine then integrates the call with the scene's ``[integration] relaxation``: the damped
+dynamics (the default "damped", the same steps as :meth:`CellControl.fixed`, bit for bit) or
+the FIRE minimiser ("fire", :mod:`dem_taichi.kernels.fire`).
 """
 
 from __future__ import annotations
@@ -38,15 +43,37 @@ class AxisControl:
 
 @dataclass(frozen=True)
 class CellControl:
-    """Per-axis cell control plus the stage label written with the history records."""
+    """Per-axis cell control plus the stage label written with the history records.
+
+    ``minimise``: a relaxation at fixed cell that the engine may integrate with the scene's
+    minimiser (``[integration] relaxation``); only with both rates 0.
+    """
 
     x: AxisControl = field(default_factory=AxisControl)
     y: AxisControl = field(default_factory=AxisControl)
     stage: str = "other"
+    minimise: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.minimise, bool):
+            raise ValueError(f"minimise = {self.minimise!r}: must be True or False")
+        if self.minimise and (self.x.value != 0.0 or self.y.value != 0.0):
+            raise ValueError(
+                f"minimise = True needs a fixed cell (strain rates 0), got rates "
+                f"({self.x.value}, {self.y.value}): use CellControl.relaxation(stage)"
+            )
 
     @classmethod
     def fixed(cls, stage: str = "relax") -> CellControl:
         return cls(AxisControl("strain_rate", 0.0), AxisControl("strain_rate", 0.0), stage)
+
+    @classmethod
+    def relaxation(cls, stage: str = "relax") -> CellControl:
+        """The cell held fixed and the call marked as a minimisation (``minimise=True``): the
+        scene's ``[integration] relaxation`` decides how it is integrated ("damped": exactly
+        :meth:`fixed`'s steps; "fire": the FIRE minimiser)."""
+        zero = AxisControl("strain_rate", 0.0)
+        return cls(zero, zero, stage, minimise=True)
 
     @classmethod
     def strain_rate(

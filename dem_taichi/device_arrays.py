@@ -15,7 +15,9 @@ on overflow), ``rolling_discs`` M with rolling resistance at the contacts, else 
 springs ψ, one per list entry, cost no memory where the scene has none), ``cells`` the side of
 the cell-list grid; integers are fixed sizes (the small
 arrays of :mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of
-body b to b + 1 holds) is allocated for rigid rods too, never read there.
+body b to b + 1 holds) is allocated for rigid rods too, never read there. ``fire`` holds the
+FIRE minimiser's constants and running scalars (:mod:`dem_taichi.kernels.fire`), set at the
+start of every minimising call: work, not state.
 
 Roles: ``state`` (the dynamical state, restored bit for bit), ``constant`` (set once from the
 scene), ``derived`` (recomputed from the state: disc positions), ``work`` (kernel scratch: cell
@@ -108,6 +110,7 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("flags", _I, (L.N_FLAGS,), "state", "flags"),
     DeviceArray("params", _R, (L.N_PARAMS,), "state", "params"),
     DeviceArray("bond_intact", _I, ("rods",), "state", "bond_intact"),
+    DeviceArray("fire", _R, (L.N_FIRE,), "work"),
     DeviceArray("measures", _R, (L.N_MEASURES,), "output"),
     DeviceArray("rod_contacts", _I, ("rods",), "output"),
     DeviceArray("pair_out", _R, ("discs", "capacity", 4), "output"),

@@ -153,6 +153,11 @@ class Simulation(SimulationViews, SimulationState):
             execution = "serial" if arch == "cpu" else "parallel"
         self.execution = execution
         self.full_list = execution == "gather"
+        if scene.integration.relaxation_method == "fire" and execution != "serial":
+            raise ValueError(
+                f'[integration] relaxation = "fire" needs the serial execution; execution = '
+                f"{execution!r} (arch {arch!r}, deterministic={deterministic}) has no FIRE kernel"
+            )
         self.geometry = rod_geometry(scene)
         self.body = body_geometry(scene)
         self.bonded = scene.bonded
@@ -382,8 +387,38 @@ class Simulation(SimulationViews, SimulationState):
         params[L.P_RATE_X], params[L.P_RATE_Y] = self._rates
         self.a["params"].from_numpy(params)
 
-    def _advance(self, n_steps: int) -> None:
-        """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up)."""
+    def _start_fire(self) -> None:
+        """Set the FIRE array for a new minimisation (:mod:`dem_taichi.kernels.fire`): the
+        scene's FIRE parameters, Δt_max and Δt_min as multiples of the current Δt, α = α_start,
+        the counters 0."""
+        p = self.scene.integration.fire
+        dt = self.time_step
+        fire = np.zeros(L.N_FIRE)
+        fire[L.FIRE_DT_MAX] = p["dt_max"] * dt
+        fire[L.FIRE_DT_MIN] = p["dt_min"] * dt
+        fire[L.FIRE_N_DELAY] = p["n_delay"]
+        fire[L.FIRE_F_INC] = p["f_inc"]
+        fire[L.FIRE_F_DEC] = p["f_dec"]
+        fire[L.FIRE_ALPHA_START] = p["alpha_start"]
+        fire[L.FIRE_F_ALPHA] = p["f_alpha"]
+        fire[L.FIRE_ALPHA] = p["alpha_start"]
+        fire[L.FIRE_DT] = dt
+        fire[L.FIRE_DT0] = dt
+        self.a["fire"].from_numpy(fire.astype(self._real))
+
+    def fire_status(self) -> dict[str, float]:
+        """The FIRE minimiser's scalars after the last minimising call ("fire" scenes): the
+        running Δt it reached, α, the steps, the velocity resets (P ≤ 0) and N+ / N−."""
+        f = self.a["fire"].to_numpy().astype(float)
+        return {
+            "dt": f[L.FIRE_DT], "alpha": f[L.FIRE_ALPHA], "steps": f[L.FIRE_STEPS],
+            "resets": f[L.FIRE_RESETS], "n_positive": f[L.FIRE_N_POS],
+            "n_negative": f[L.FIRE_N_NEG],
+        }  # fmt: skip
+
+    def _advance(self, n_steps: int, fire: bool = False) -> None:
+        """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up);
+        ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
         from dem_taichi.kernels import parallel as K
         from dem_taichi.kernels.step import run_steps_serial
 
@@ -395,7 +430,11 @@ class Simulation(SimulationViews, SimulationState):
             todo = n_steps - done
             t0 = _time.perf_counter()
             ns = self.body.n_spheres
-            if self.execution == "serial":
+            if fire:
+                from dem_taichi.kernels.fire import run_steps_fire
+
+                self._launch(run_steps_fire, ns=ns, phys=self.physics, n_steps=todo)
+            elif self.execution == "serial":
                 self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
                 for _ in range(todo):
@@ -429,6 +468,13 @@ class Simulation(SimulationViews, SimulationState):
 
         ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
         ``output_every`` steps (default ``[output] every``) and at the end.
+
+        A minimising control (``control.minimise``, :meth:`CellControl.relaxation`) on a scene
+        with ``[integration] relaxation = "fire"`` runs the FIRE minimiser
+        (:mod:`dem_taichi.kernels.fire`) for the call: a new minimisation from the current
+        state, Δt growing to at most ``fire_dt_max`` × Δt within the call and back to Δt after
+        it. Otherwise (every other control, and every call of a "damped" scene) the damped
+        dynamics, the same steps whatever ``minimise`` says.
         """
         n_steps = step_count("n_steps", n_steps, 0)
         output_every = (
@@ -439,6 +485,9 @@ class Simulation(SimulationViews, SimulationState):
         control = control or self._control
         self._control = control
         self._stage = control.stage
+        fire = control.minimise and self.scene.integration.relaxation_method == "fire"
+        if fire:
+            self._start_fire()
         chunk = self.scene.integration.steps_per_call
         bar = None
         if progress:
@@ -452,7 +501,7 @@ class Simulation(SimulationViews, SimulationState):
             while done < n_steps:
                 todo = min(chunk, n_steps - done, next_output - done)
                 self._set_rates(control.rates)
-                self._advance(todo)
+                self._advance(todo, fire)
                 done += todo
                 if bar is not None:
                     bar.update(todo)

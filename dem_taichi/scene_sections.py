@@ -187,6 +187,21 @@ class VanDerWaals(SceneSection):
     k: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
 
 
+#: FIRE's parameters unless the scene sets ``[integration] fire_<name>``: FIRE 2.0's (Guénolé et
+#: al., Comput. Mater. Sci. 175, 109584, 2020, Table 1: N_delay 20, f_inc 1.1, f_dec 0.5,
+#: α_start 0.25, f_α 0.99, Δt_min 0.02 Δt) but Δt_max = 2 Δt instead of 10 Δt (contact
+#: stability: the leapfrog bound is Δt < 2/ω_n ≈ 0.64 t_c, and the scenes run at 0.15 t_c).
+FIRE_DEFAULTS: dict[str, float] = {
+    "dt_max": 2.0,
+    "dt_min": 0.02,
+    "n_delay": 20,
+    "f_inc": 1.1,
+    "f_dec": 0.5,
+    "alpha_start": 0.25,
+    "f_alpha": 0.99,
+}
+
+
 @dataclass(frozen=True)
 class Integration(SceneSection):
     SECTION = "integration"
@@ -211,6 +226,107 @@ class Integration(SceneSection):
     max_kinetic_energy_per_rod: float = field(
         default=1.0e3, metadata=_range(0.0, None, lo_open=True)
     )
+    # The minimiser of the relaxations (issue 20). Every key below is optional and written to
+    # the scene's TOML only when set, so scenes without them keep their text and hash; unset,
+    # each takes the default of FIRE_DEFAULTS (FIRE 2.0, Guénolé et al. 2020, but Δt_max).
+    relaxation: str | None = field(
+        default=None,
+        metadata={
+            **_choices(
+                "damped",
+                "fire",
+                doc="how a minimising call (CellControl.relaxation(stage)) is integrated: "
+                "'damped' (default): the damped dynamics of every other call, bit for bit; "
+                "'fire': the FIRE minimiser (Bitzek et al. 2006 / FIRE 2.0; serial execution)",
+            ),
+            "optional": True,
+        },
+    )
+    fire_dt_max: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                1.0,
+                2.0,
+                doc="FIRE Δt_max / Δt (default 2; the papers' 10 is unstable "
+                "for stiff contacts: Δt must stay below ~0.6 t_c)",
+            ),
+            "optional": True,
+        },
+    )
+    fire_dt_min: float | None = field(
+        default=None,
+        metadata={
+            **_range(0.0, 1.0, lo_open=True, doc="FIRE Δt_min / Δt: no decrease below (0.02)"),
+            "optional": True,
+        },
+    )
+    fire_n_delay: int | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0,
+                100_000,
+                doc="FIRE N_delay: steps with P > 0 before Δt grows; no Δt "
+                "decrease during the first N_delay steps (20)",
+            ),
+            "optional": True,
+        },
+    )
+    fire_f_inc: float | None = field(
+        default=None,
+        metadata={**_range(1.0, 2.0, doc="FIRE Δt growth factor f_inc (1.1)"), "optional": True},
+    )
+    fire_f_dec: float | None = field(
+        default=None,
+        metadata={
+            **_range(0.0, 1.0, lo_open=True, hi_open=True, doc="FIRE Δt factor on P ≤ 0 (0.5)"),
+            "optional": True,
+        },
+    )
+    fire_alpha_start: float | None = field(
+        default=None,
+        metadata={
+            **_range(0.0, 1.0, hi_open=True, doc="FIRE mixing α after a reset (0.25)"),
+            "optional": True,
+        },
+    )
+    fire_f_alpha: float | None = field(
+        default=None,
+        metadata={
+            **_range(0.0, 1.0, lo_open=True, doc="FIRE α decay factor f_α per step (0.99)"),
+            "optional": True,
+        },
+    )
+
+    def check(self) -> None:
+        fire_keys = [name for name in FIRE_DEFAULTS if getattr(self, f"fire_{name}") is not None]
+        if fire_keys and self.relaxation != "fire":
+            raise SceneError(
+                f"[integration] {', '.join('fire_' + k for k in fire_keys)}: used only with "
+                f'relaxation = "fire" (relaxation = {self.relaxation or "damped"!r})'
+            )
+        if self.relaxation == "fire" and self.execution in ("parallel", "gather"):
+            raise SceneError(
+                f'[integration] relaxation = "fire" needs execution = "serial" (or "auto" on a '
+                f"CPU); execution = {self.execution!r} has no FIRE kernel"
+            )
+
+    @property
+    def relaxation_method(self) -> str:
+        """``relaxation`` with its default: "damped" or "fire"."""
+        return self.relaxation or "damped"
+
+    @property
+    def fire(self) -> dict[str, float]:
+        """The FIRE parameters, defaults filled in (:data:`FIRE_DEFAULTS`): dt_max and dt_min
+        as factors of the scene's Δt, n_delay, f_inc, f_dec, alpha_start, f_alpha."""
+        return {
+            name: default
+            if getattr(self, f"fire_{name}") is None
+            else getattr(self, f"fire_{name}")
+            for name, default in FIRE_DEFAULTS.items()
+        }
 
 
 @dataclass(frozen=True)

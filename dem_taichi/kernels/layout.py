@@ -4,6 +4,7 @@
 ``cell`` (real): cell lengths, lengths at the last list build, time, list-displacement trackers.
 ``flags`` (int32): control and error flags set by kernels and read by the host.
 ``measures`` (real): sums accumulated by the measure kernel.
+``fire`` (real): the FIRE minimiser's constants and running scalars (:mod:`.fire`).
 Neighbour entries pack disc j with its periodic image (``IMAGE_*``, helpers for numpy code);
 ``pair_flags`` holds the ``PAIR_*`` bits of every list entry.
 """
@@ -68,6 +69,23 @@ N_FLAGS = 12
 
 BLOWUP_NONFINITE = 1
 BLOWUP_OVERLAP = 2
+
+# fire (the FIRE minimiser, dem_taichi.kernels.fire; set by the engine at each minimising call) --
+FIRE_DT_MAX = 0  # Δt_max (absolute: factor × the scene's Δt)
+FIRE_DT_MIN = 1  # Δt_min (absolute): Δt is not decreased below it
+FIRE_N_DELAY = 2  # N_delay: steps with P > 0 before Δt grows; also FIRE 2.0's initial delay
+FIRE_F_INC = 3  # Δt growth factor
+FIRE_F_DEC = 4  # Δt decrease factor on P ≤ 0
+FIRE_ALPHA_START = 5  # α after a reset
+FIRE_F_ALPHA = 6  # α decay factor
+FIRE_ALPHA = 7  # running α
+FIRE_N_POS = 8  # running count of consecutive steps with P > 0
+FIRE_N_NEG = 9  # running count of consecutive steps with P ≤ 0
+FIRE_STEPS = 10  # steps of the minimisation so far (for the initial delay)
+FIRE_RESETS = 11  # velocity resets (P ≤ 0) so far
+FIRE_DT = 12  # running Δt of the minimisation (params[P_DT] holds it only while the kernel runs)
+FIRE_DT0 = 13  # the scene's (runtime) Δt, put back into params[P_DT] at the end of every call
+N_FIRE = 14
 
 # measures -------------------------------------------------------------------------------------
 M_SXX = 0  # Σ f_x b_x over inter-rod pairs and bonds (not yet divided by the area)
