@@ -5,7 +5,7 @@
     python -m dem_taichi.sweep SWEEP.toml --out DIR [--scheduler ADDRESS] [--n-workers N]
         [--tls-ca-file CA.pem --tls-cert CERT.pem [--tls-key KEY.pem]] [--dashboard ADDRESS]
         [--max-members N]
-    python -m dem_taichi.sweep summarise DIR [--over scene.seed] [--out FILE.md]
+    python -m dem_taichi.sweep summarise DIR [--over scene.seed] [--out FILE.md] [--overwrite]
 
 The sweep file (:mod:`dem_taichi.sweep_spec`) gives a base scene and a grid and/or a list of
 members; each member is a whole :func:`dem_taichi.protocol.run_protocol` in ``DIR/members/<name>``.
@@ -56,7 +56,8 @@ skips the members that are done (same scene hash) and runs the others again: an 
 failed member that had reached state A resumes from there, with the branches from A it had
 finished (:mod:`dem_taichi.protocol_resume`); one stopped before A starts again from the gas.
 A member done with another scene than the sweep file now gives it is refused unless
-``--overwrite``. ``summarise`` and
+``--overwrite``. ``summarise`` refuses existing summary files (or links there) unless
+``--overwrite`` and writes each atomically (a link is replaced, never its target); it and
 :func:`dem_taichi.sweep_results.open_sweep` read the finished members
 (:mod:`dem_taichi.sweep_results`).
 """
@@ -592,7 +593,11 @@ def _summarise_command(args) -> int:
     from dem_taichi.sweep_results import summarise_sweep
 
     files = summarise_sweep(
-        args.dir, over=tuple(args.over or ["scene.seed"]), out=args.out, extra_runs=args.add
+        args.dir,
+        over=tuple(args.over or ["scene.seed"]),
+        out=args.out,
+        extra_runs=args.add,
+        overwrite=args.overwrite,
     )
     if not args.quiet:
         print(Path(files["table"]).read_text())
@@ -659,8 +664,14 @@ def _parser(prog: str) -> argparse.ArgumentParser:
             "(default scene.seed; repeat for several)",
         )  # fmt: skip
         summary.add_argument(
-            "--out", default=None, help="markdown file (default DIR/replica_summary.md)"
-        )
+            "--out", default=None, type=_no_control_characters("--out"),
+            help="markdown file (default DIR/replica_summary.md); the figure (.png), statistics "
+            "(.json) and dataset (_members.nc) take its stem",
+        )  # fmt: skip
+        summary.add_argument(
+            "--overwrite", action="store_true",
+            help="replace the summary's files if they exist (else refused)",
+        )  # fmt: skip
         summary.add_argument(
             "--add", nargs="+", default=[], metavar="RUN_DIR",
             help="finished protocol runs of the same scene made outside the sweep, pooled as "
@@ -684,7 +695,8 @@ def _main(argv: list[str], prog: str) -> int:
 def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.sweep") -> int:
     """``python -m dem_taichi.sweep [run] SWEEP.toml --out DIR [--scheduler ADDRESS]
     [--tls-ca-file F --tls-cert F [--tls-key F]] [--n-workers N] [--dashboard ADDRESS]
-    [--max-members N] [--overwrite] [--verbose]`` | ``summarise DIR [--over KEY] [--out FILE]``
+    [--max-members N] [--overwrite] [--verbose]`` | ``summarise DIR [--over KEY] [--out FILE]
+    [--overwrite]``
     (both with ``--quiet``, ``--debug``); returns the exit code: 0 every member done, 1 a
     member failed, 2 bad input (an invalid sweep file: one line naming the key and what is
     allowed; the traceback with ``--debug``; :mod:`tiv_model.command_line`), 128 + N stopped

@@ -34,6 +34,7 @@ __all__ = [
     "replica_statistics",
     "summary_table",
     "summarise_sweep",
+    "summary_files",
 ]
 
 #: Per-member findings of :func:`dem_taichi.findings.run_findings`: dataset name, key, long name.
@@ -417,30 +418,66 @@ def _finite(value):
     return value
 
 
+def summary_files(out_dir: str | Path, out: str | Path | None = None) -> dict[str, Path]:
+    """The files :func:`summarise_sweep` writes: the table (``out``, default
+    ``out_dir/replica_summary.md``), and beside it the figure (``.png``), the statistics
+    (``.json``) and the combined dataset (``<stem>_members.nc``)."""
+    table = Path(out) if out is not None else Path(out_dir) / "replica_summary.md"
+    return {
+        "table": table,
+        "figure": table.with_suffix(".png"),
+        "statistics": table.with_suffix(".json"),
+        "dataset": table.with_name(table.stem + "_members.nc"),
+    }
+
+
+def _check_summary_files(files: dict[str, Path], overwrite: bool) -> None:
+    """Refuse (ValueError, one line) a table path that names its companions, a folder among
+    the files, and existing files (links too) unless ``overwrite``."""
+    table = files["table"]
+    if len(set(files.values())) < len(files):
+        raise ValueError(
+            f"--out {table}: the summary also writes {files['figure'].name}, "
+            f"{files['statistics'].name} and {files['dataset'].name} beside it: give a markdown "
+            "file (FILE.md)"
+        )
+    for path in files.values():
+        if path.is_dir() and not path.is_symlink():
+            raise ValueError(f"{path} is a folder; the summary writes a file there: choose --out")
+    existing = [p for p in files.values() if p.exists() or p.is_symlink()]
+    if existing and not overwrite:
+        names = ", ".join(str(p) for p in existing)
+        raise ValueError(
+            f"{names} exist(s); add --overwrite to replace the summary's files (a link is "
+            "replaced, never its target), or choose another --out"
+        )
+
+
 def summarise_sweep(
     out_dir: str | Path,
     over: tuple[str, ...] = ("scene.seed",),
     out: str | Path | None = None,
     extra_runs=(),
+    overwrite: bool = False,
 ) -> dict[str, str]:
     """Write the replica table (markdown), figure (PNG), statistics (JSON) and the combined
     dataset (netCDF) of the sweep in ``out_dir``; returns their paths. ``out``: the table's
-    path (default ``out_dir/replica_summary.md``; the other files take its stem)."""
+    path (default ``out_dir/replica_summary.md``; the other files take its stem,
+    :func:`summary_files`). An existing file among them (or a link there) is refused
+    (ValueError) unless ``overwrite``; each file is written atomically
+    (:func:`tiv_model.command_line.replace_file`: a link is replaced, never written through)."""
+    from tiv_model.command_line import replace_file
+
     folder = Path(out_dir)
+    files = summary_files(folder, out)
+    _check_summary_files(files, overwrite)
     ds = open_sweep(folder, extra_runs)
     if ds.sizes["member"] == 0:
         raise ValueError(f"sweep in {folder}: no finished member to summarise")
     stats = replica_statistics(ds, over)
-    table = Path(out) if out is not None else folder / "replica_summary.md"
-    table.write_text(summary_table(ds, stats))
-    figure = summary_figure(ds, stats, table.with_suffix(".png"), over)
-    numbers = table.with_suffix(".json")
-    numbers.write_text(json.dumps(_finite(stats), indent=2))
-    dataset = table.with_name(table.stem + "_members.nc")
-    ds.to_netcdf(dataset)
-    return {
-        "table": str(table),
-        "figure": str(figure),
-        "statistics": str(numbers),
-        "dataset": str(dataset),
-    }
+    replace_file(files["table"], lambda t: t.write_text(summary_table(ds, stats)))
+    replace_file(files["figure"], lambda t: summary_figure(ds, stats, t, over))
+    text = json.dumps(_finite(stats), indent=2)
+    replace_file(files["statistics"], lambda t: t.write_text(text))
+    replace_file(files["dataset"], lambda t: ds.to_netcdf(t))
+    return {kind: str(path) for kind, path in files.items()}

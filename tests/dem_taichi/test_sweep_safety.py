@@ -199,6 +199,62 @@ def test_a_member_folder_locked_by_a_live_process_is_skipped_untouched(
     assert len(err) == 1 and "member m1: skipped" in err[0] and str(live.pid) in err[0], err
 
 
+# -- the summary's files ---------------------------------------------------------------------
+def finished_sweep(tmp_path: Path) -> Path:
+    """A sweep folder with two finished members (the synthetic runs of test_mapped_window)."""
+    from .test_mapped_window import write_run
+
+    out = tmp_path / "sweep"
+    members = []
+    for seed in (1, 2):
+        name = f"seed-{seed}"
+        write_run(out / "members" / name)
+        write_json(out / "members" / name / "member.json", {"status": "done", "scene_sha256": "x"})
+        members.append({"name": name, "parameters": {"scene.seed": seed}, "scene_sha256": "x"})
+    write_json(out / "sweep.json", {"sweep": "s", "scene": "smoke", "members": members})
+    return out
+
+
+def test_summarise_refuses_existing_files_unless_overwrite(tmp_path, capsys):
+    """Issue 22: ``summarise --out FILE`` replaced an existing file silently."""
+    out = finished_sweep(tmp_path)
+    table = tmp_path / "mine.md"
+    table.write_text("the user's notes")
+    capsys.readouterr()
+    assert main(["summarise", str(out), "--out", str(table), "--quiet"]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and str(table) in err[0] and "--overwrite" in err[0], err
+    assert table.read_text() == "the user's notes" and not (tmp_path / "mine.png").exists()
+    assert main(["summarise", str(out), "--out", str(table), "--quiet", "--overwrite"]) == 0
+    assert "λ*" in table.read_text()
+    for name in ("mine.png", "mine.json", "mine_members.nc"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries
+    # the default table in the sweep folder: written once, then refused
+    assert main(["summarise", str(out), "--quiet"]) == 0
+    assert main(["summarise", str(out), "--quiet"]) == 2
+    assert "replica_summary.md" in capsys.readouterr().err
+
+
+def test_summarise_never_writes_through_a_link(tmp_path, capsys):
+    out = finished_sweep(tmp_path)
+    precious = tmp_path / "precious.json"
+    precious.write_text("keep me")
+    (tmp_path / "mine.json").symlink_to(precious)  # where the statistics go
+    argv = ["summarise", str(out), "--out", str(tmp_path / "mine.md"), "--quiet"]
+    assert main(argv) == 2
+    assert "mine.json" in capsys.readouterr().err and precious.read_text() == "keep me"
+    assert main([*argv, "--overwrite"]) == 0
+    assert precious.read_text() == "keep me" and not (tmp_path / "mine.json").is_symlink()
+    assert "all members" in (tmp_path / "mine.json").read_text()
+
+
+def test_summarise_refuses_an_out_that_names_its_companions(tmp_path, capsys):
+    out = finished_sweep(tmp_path)
+    assert main(["summarise", str(out), "--out", str(tmp_path / "table.png"), "--quiet"]) == 2
+    assert "give a markdown file" in capsys.readouterr().err
+
+
 # -- size ----------------------------------------------------------------------------------------
 def test_a_grid_of_a_hundred_million_members_is_refused_at_once(tmp_path, capsys):
     values = "[" + ", ".join(str(i) for i in range(100)) + "]"
