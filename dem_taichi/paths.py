@@ -2,6 +2,11 @@
 
 Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
 
+0. ``aggregation`` (optional, ``[protocol] aggregation`` = "time" | "coordination") — the gas is
+   brought to ``aggregation_area_fraction`` by an isotropic strain-controlled compression at
+   ``gas_strain_rate``, then aged at fixed cell (its rms speed optionally rescaled to
+   ``aggregation_speed`` at every check) for ``aggregation_time``, or until the coordination
+   number Z reaches ``aggregation_coordination`` (at most ``aggregation_max_time``).
 1. ``isotropic_to_A`` — from the gas, isotropic strain-controlled compression in increments of
    per-axis logarithmic strain h, each followed by a relaxation at fixed cell. A relaxed state is
    a candidate for the fluid–solid transition when p > ``pressure_tolerance`` and
@@ -45,7 +50,7 @@ from dem_taichi.measures import Measures
 from dem_taichi.progress import StageProgress, use_bars
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
-from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
+from dem_taichi.quasistatic import apply_strain, hold, relax, rescale_speed, strain_rate_cap
 from dem_taichi.servo import StressServo
 
 __all__ = ["ProtocolRunner"]
@@ -84,6 +89,7 @@ class ProtocolRunner:
         self.compression_sequence: list[dict] = []
         self.state_A: dict | None = None
         self.state_C: dict | None = None
+        self.aggregation_details: dict | None = None
         self._since_output = 0
         self.out_dir: Path | None = None
         self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)
@@ -212,16 +218,138 @@ class ProtocolRunner:
         if wanted:
             self.probe_hook(self, state)
 
-    # -- stage 1 ----------------------------------------------------------------------------
-    def compress_to_transition(self) -> RelaxedState:
-        """Isotropic strain-controlled compression in relaxed increments until state A."""
+    # -- stage 0 ----------------------------------------------------------------------------
+    def aggregate(self) -> dict:
+        """The aggregation (gas-ageing) stage before the compression to A; returns (and keeps
+        as ``aggregation_details``, written with the transition in the results) what it did.
+
+        1. Isotropic strain-controlled compression of the gas from its area fraction φ_0 to
+           ``aggregation_area_fraction`` (per-axis log strain ½ ln(φ/φ_0), at
+           ``gas_strain_rate``; none when unset or equal).
+        2. Ageing at fixed cell, checked every ``relax_check_steps`` steps: for
+           ``aggregation_time`` ("time"), or until the coordination number Z
+           (``coordination_number``, contacts per rod) reaches ``aggregation_coordination``
+           ("coordination"), at most ``aggregation_max_time`` — then a one-line note, not an
+           error. With ``aggregation_speed`` the bodies' rms velocity component is rescaled to
+           it at the start and after every check.
+
+        History records at the scene's ``[output] every`` (and the end of the stage), stage
+        label "aggregation". Deterministic: the same scene gives the same state bit for bit.
+        """
         c = self.config
         sim = self.sim
+        stage = "aggregation"
+        if not c.aggregates:
+            raise ProtocolError("[protocol] aggregation = 'none': there is no aggregation stage")
+        t0 = time.perf_counter()
+        record = self._record(stage)
+        every = sim.scene.output.every
+        progress = self._begin_stage(stage, None)
+        start = sim.measure()
+        phi_start = 1.0 / start["specific_volume"]
+        details: dict = {
+            "criterion": c.aggregation,
+            "area_fraction_start": phi_start,
+            "coordination_number_start": start["coordination_number"],
+            "step_start": start["step"],
+        }
+        # 1. compression of the gas to the ageing area fraction
+        phi_target = c.aggregation_area_fraction
+        if phi_target is not None and phi_target > phi_start:
+            h = 0.5 * math.log(phi_target / phi_start)
+            before = sim.step
+            measures = apply_strain(
+                sim, (h, h), stage, c.gas_strain_rate, c.load_steps_min, self.history, every
+            )
+            record.steps += sim.step - before
+            measures = measures.copy()
+            measures["inertial_number"] = float("nan")  # a gas: I is undefined
+            record.note(measures, False, c.unbalanced_force_max)
+            progress.step(
+                0,
+                f"[{stage}] compressed to phi={1.0 / measures['specific_volume']:.4f} "
+                f"in {sim.step - before} steps p={measures['mean_stress']:.4g} "
+                f"Z={measures['coordination_number']:.3f}",
+            )
+        else:
+            measures = start
+        details["area_fraction"] = 1.0 / measures["specific_volume"]
+        details["coordination_number_compressed"] = measures["coordination_number"]
+        # 2. ageing at fixed cell
+        dt = sim.time_step
+        limit = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
+        assert limit is not None  # ProtocolConfig.check
+        total = max(int(math.ceil(limit / dt - 1e-9)), 1)
+        target_z = c.aggregation_coordination if c.aggregation == "coordination" else None
+        speed = c.aggregation_speed
+        if speed is not None:
+            rescale_speed(sim, speed)
+        self._since_output = 0
+        done, check, met = 0, 0, target_z is None
+        z = measures["coordination_number"]
+        if target_z is not None and z >= target_z:
+            met = True  # reached by the compression already
+        while not (target_z is not None and met) and done < total:
+            n = min(c.relax_check_steps, total - done)
+            measures = hold(sim, stage, n)
+            done += n
+            check += 1
+            record.steps += n
+            self._output(measures, n)
+            z = measures["coordination_number"]
+            progress.step(
+                check,
+                f"[{stage}] t={done * dt:.4g}/{limit:g} Z={z:.3f} "
+                f"Zm={measures['mechanical_coordination_number']:.3f} "
+                f"KE/N={measures['kinetic_energy'] / sim.n_rods:.3g} "
+                f"p={measures['mean_stress']:.4g}",
+            )
+            if target_z is not None and z >= target_z:
+                met = True
+            elif speed is not None and done < total:
+                rescale_speed(sim, speed)
+        if self.history is not None and self._since_output > 0:
+            self.history.append(measures)  # the end of the stage
+        self._since_output = 0
+        details.update(
+            criterion_met=bool(met),
+            aging_time=done * dt,
+            aging_steps=done,
+            coordination_number=z,
+            mechanical_coordination_number=measures["mechanical_coordination_number"],
+            mean_stress=measures["mean_stress"],
+            step=measures["step"],
+        )
+        if not met:
+            note = (
+                f"[{stage}] note: Z = {z:.3f} has not reached aggregation_coordination = "
+                f"{target_z:g} within aggregation_max_time = {limit:g}: the ageing stops at the "
+                "cap and the compression to A follows"
+            )
+            details["note"] = note
+            self._say(note)
+        record.seconds += time.perf_counter() - t0
+        self._end_stage()
+        self._say(
+            f"[aggregated] phi={details['area_fraction']:.4f} Z "
+            f"{details['coordination_number_start']:.3f} -> {z:.3f} after t={done * dt:.4g}"
+        )
+        self.aggregation_details = details
+        return details
+
+    # -- stage 1 ----------------------------------------------------------------------------
+    def compress_to_transition(self) -> RelaxedState:
+        """Isotropic strain-controlled compression in relaxed increments until state A (after
+        the aggregation stage when ``[protocol] aggregation`` asks for one)."""
+        c = self.config
+        sim = self.sim
+        if c.aggregates and self.aggregation_details is None:
+            self.aggregate()
         stage = "isotropic_to_A"
         t0 = time.perf_counter()
         record = self._record(stage)
         h = c.compression_increment
-        tol = c.pressure_tolerance
+        tol = c.transition_pressure_tolerance(sim.scene)
 
         def gas(measures: Measures, steps: int) -> bool:
             # a state whose (dynamic) pressure is far below the tolerance after a few checks is
@@ -237,7 +365,7 @@ class ProtocolRunner:
         for increment in range(c.max_compression_increments):
             p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
             rate_p = p_now if p_now > tol else 0.0
-            self._load_compression(stage, h, rate_p)
+            self._load_compression(stage, h, rate_p, tol)
             measures, ok = self._relax(stage, gas)
             entry = {
                 "increment": increment,
@@ -288,7 +416,13 @@ class ProtocolRunner:
                 f"no fluid–solid transition after {c.max_compression_increments} compression "
                 f"increments (last relaxed p = {measures['mean_stress']:.4g}, Z_m = "
                 f"{measures['mechanical_coordination_number']:.3g}); raise [protocol] "
-                "max_compression_increments or lower pressure_tolerance / coordination_min"
+                "max_compression_increments or lower "
+                + (
+                    "pressure_tolerance_reduced"
+                    if c.pressure_tolerance_reduced is not None
+                    else "pressure_tolerance"
+                )
+                + " / coordination_min"
             )
         assert candidate is not None
         sim.set_state(candidate[0])
@@ -328,6 +462,10 @@ class ProtocolRunner:
             "n_increments": len(sequence),
             "sequence": sequence,
         }
+        if c.pressure_tolerance_reduced is not None:
+            self.log.transition_details["pressure_tolerance_reduced"] = c.pressure_tolerance_reduced
+        if self.aggregation_details is not None:
+            self.log.transition_details["aggregation"] = self.aggregation_details
         sim.set_strain_reference()
         a_measures = sim.measure()
         if self.history is not None:
@@ -343,7 +481,9 @@ class ProtocolRunner:
         self._maybe_probe(state, last=False)
         return state
 
-    def _load_compression(self, stage: str, h: float, p_now: float) -> None:
+    def _load_compression(self, stage: str, h: float, p_now: float, tol: float) -> None:
+        """One compression increment h; ``tol`` the A criterion's pressure tolerance (below
+        it the gas rate applies and I is not recorded)."""
         c = self.config
         sim = self.sim
         rate = c.gas_strain_rate
@@ -356,7 +496,7 @@ class ProtocolRunner:
         before = sim.step
         measures = apply_strain(sim, (h, h), stage, rate, c.load_steps_min, self.history, every)
         self._record(stage).steps += sim.step - before
-        if measures["mean_stress"] <= c.pressure_tolerance:
+        if measures["mean_stress"] <= tol:
             # gas: I = ε̇ d sqrt(ρ/p) is undefined/meaningless; the gas rate cap applies instead
             measures = measures.copy()
             measures["inertial_number"] = float("nan")

@@ -129,6 +129,47 @@ class ProtocolConfig(SceneSection):
       frozen-network studies (``dem_taichi.flexible_response``, ``benchmarks/
       stiffness_anisotropy.py``). Needs ``save_states``.
     - ``load_steps_min`` [200]: fewest steps over which a strain increment is applied.
+
+    Preparation of the gas before the compression to A (issue 19): an attractive (clay-like)
+    gas left to aggregate before it is compressed forms clusters that jam much looser than the
+    gas compressed directly; the loose, attraction-stabilised structure is what collapses inside
+    the stress window (λ* ≈ 0.25). The stage "aggregation"
+    (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`) runs before "isotropic_to_A" when
+    ``aggregation`` is "time" or "coordination"; every key below is unset by default, so a scene
+    without them runs (and writes its TOML and hash) as before.
+
+    - ``aggregation`` [unset = "none"]: "none" — no stage; "time" — age the gas for
+      ``aggregation_time``; "coordination" — age it until the mean coordination number
+      Z = 2 n_contacts / n_rods (contacts per rod, the history's ``coordination_number``)
+      reaches ``aggregation_coordination``, or stop at ``aggregation_max_time`` with a one-line
+      note (not an error). Z is the criterion because the engine measures it at every check for
+      free (the contact count is a by-product of the force loop); a mean cluster size would need
+      a connected-components pass over the contact graph at every check.
+    - ``aggregation_time`` [unset; needed by "time"]: ageing time at fixed cell (DEM time units,
+      d = m = 1; steps = ceil(time / Δt)).
+    - ``aggregation_coordination`` [unset; needed by "coordination"]: the Z that ends the
+      ageing (contacts per rod; checked every ``relax_check_steps`` steps).
+    - ``aggregation_max_time`` [unset; needed by "coordination"]: the cap of the ageing time
+      (DEM time units).
+    - ``aggregation_area_fraction`` [unset = the scene's [particles] initial_area_fraction, no
+      compression]: the gas is first brought to this area fraction φ (solid area / cell area)
+      by an isotropic strain-controlled compression at ``gas_strain_rate`` (over at least
+      ``load_steps_min`` steps), then aged at that fixed cell. Allowed
+      [initial_area_fraction, 1): a denser gas collides (and sticks) more often.
+    - ``aggregation_speed`` [unset = free cooling]: the rods' kinetic temperature during the
+      ageing. Unset: none is imposed, the gas cools freely under the scene's damping (inelastic
+      contacts, local damping, the attraction wells). Set: the rms velocity component of the
+      bodies is rescaled to this value (angular velocities by the same factor) at the start of
+      the ageing and after every check (every ``relax_check_steps`` steps) — a crude
+      thermostat that keeps the rods exploring; a speed far above sqrt(F_max g_max / m) breaks
+      the contacts it forms (DEM velocity units).
+    - ``pressure_tolerance_reduced`` [unset = use ``pressure_tolerance``]: the A criterion's
+      tolerance in units of the attraction, P* = p d / F_max (F_max the larger of [long_range]
+      f_max_edge and f_max_inner, d the disc diameter): the tolerance is then P* F_max / d, so
+      scenes at different F_max are prepared alike. It replaces ``pressure_tolerance`` in the
+      transition rule only (candidates, confirmation, the gas rate below it); the servo and the
+      probes keep ``pressure_tolerance`` as the floor stress of their inertial-number rate caps.
+      Refused when the scene has no long-range forces (disabled or neutral).
     """
 
     SECTION = "protocol"
@@ -168,8 +209,30 @@ class ProtocolConfig(SceneSection):
     inertial_number_safety: float = field(default=0.5, metadata=_range(0.0, 1.0, lo_open=True))
     save_states: bool = True
     save_path_states: bool = False
+    aggregation: str | None = field(
+        default=None, metadata={**_choices("none", "time", "coordination"), "optional": True}
+    )
+    aggregation_time: float | None = field(
+        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+    )
+    aggregation_coordination: float | None = field(
+        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+    )
+    aggregation_max_time: float | None = field(
+        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+    )
+    aggregation_area_fraction: float | None = field(
+        default=None, metadata={**_range(0.0, 1.0, lo_open=True, hi_open=True), "optional": True}
+    )
+    aggregation_speed: float | None = field(
+        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+    )
+    pressure_tolerance_reduced: float | None = field(
+        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+    )
 
     def check(self) -> None:
+        self._check_aggregation()
         if self.min_compression_increment > self.compression_increment:
             raise SceneError(
                 f"[protocol] min_compression_increment = {self.min_compression_increment} > "
@@ -189,6 +252,77 @@ class ProtocolConfig(SceneSection):
             raise SceneError(
                 "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"
             )
+
+    def _check_aggregation(self) -> None:
+        """The aggregation keys fit the criterion: each one needed is given, none is stray."""
+        mode = self.aggregation or "none"
+        needed = {
+            "none": (),
+            "time": ("aggregation_time",),
+            "coordination": ("aggregation_coordination", "aggregation_max_time"),
+        }[mode]
+        for key in needed:
+            if getattr(self, key) is None:
+                raise SceneError(f"[protocol] aggregation = {mode!r} needs {key} (not given)")
+        criterion_keys = ("aggregation_time", "aggregation_coordination", "aggregation_max_time")
+        stray = [k for k in criterion_keys if getattr(self, k) is not None and k not in needed]
+        if mode == "none":
+            stray += [
+                k
+                for k in ("aggregation_area_fraction", "aggregation_speed")
+                if getattr(self, k) is not None
+            ]
+        if stray:
+            uses = {
+                "aggregation_time": "aggregation = 'time'",
+                "aggregation_coordination": "aggregation = 'coordination'",
+                "aggregation_max_time": "aggregation = 'coordination'",
+            }
+            key = stray[0]
+            raise SceneError(
+                f"[protocol] {key} = {getattr(self, key)!r} is used only with "
+                f"{uses.get(key, 'aggregation = time | coordination')}; this scene has "
+                f"aggregation = {mode!r}: remove {key} or set aggregation"
+            )
+
+    @property
+    def aggregates(self) -> bool:
+        """Whether the run has an aggregation stage before the compression to A."""
+        return (self.aggregation or "none") != "none"
+
+    def check_scene(self, scene) -> None:
+        """The checks that need the rest of the scene ([particles], [long_range]): an
+        aggregation area fraction below the gas's, a reduced pressure tolerance without
+        long-range forces. Run by :func:`protocol_settings` (so before any run starts)."""
+        phi = self.aggregation_area_fraction
+        phi0 = scene.particles.initial_area_fraction
+        if phi is not None and phi < phi0:
+            raise SceneError(
+                f"[protocol] aggregation_area_fraction = {phi!r} is below [particles] "
+                f"initial_area_fraction = {phi0!r}: allowed [{phi0!r}, 1) (the gas is only "
+                "compressed before ageing)"
+            )
+        lr = scene.long_range
+        if self.pressure_tolerance_reduced is not None and not (
+            lr.enabled and lr.pattern in ("acidic", "basic")
+        ):
+            state = "enabled = false" if not lr.enabled else f"pattern = {lr.pattern!r}"
+            raise SceneError(
+                f"[protocol] pressure_tolerance_reduced = {self.pressure_tolerance_reduced!r} "
+                f"needs long-range forces (P* = p d / F_max); this scene's [long_range] has "
+                f"{state}: give pressure_tolerance instead"
+            )
+
+    def transition_pressure_tolerance(self, scene) -> float:
+        """The p above which a relaxed state carries load in the A criterion (DEM units):
+        ``pressure_tolerance``, or P* F_max / d when ``pressure_tolerance_reduced`` = P* is set
+        (F_max the larger of [long_range] f_max_edge, f_max_inner; d the disc diameter)."""
+        if self.pressure_tolerance_reduced is None:
+            return self.pressure_tolerance
+        self.check_scene(scene)
+        lr = scene.long_range
+        f_max = max(lr.f_max_edge, lr.f_max_inner)
+        return self.pressure_tolerance_reduced * f_max / scene.particles.diameter
 
     @property
     def radial_ratios(self) -> tuple[float, ...]:
@@ -279,8 +413,12 @@ class ProbingConfig(SceneSection):
 
 
 def protocol_settings(scene) -> ProtocolConfig:
-    """The scene's ``[protocol]`` section, or the defaults when it has none."""
-    return scene.extensions.get("protocol", ProtocolConfig())
+    """The scene's ``[protocol]`` section, or the defaults when it has none; refuses
+    (:class:`SceneError`, naming the key) a section that does not fit the rest of the scene
+    (:meth:`ProtocolConfig.check_scene`)."""
+    config = scene.extensions.get("protocol", ProtocolConfig())
+    config.check_scene(scene)
+    return config
 
 
 def probing_settings(scene) -> ProbingConfig:

@@ -2,7 +2,9 @@
 
 The loading paths (:mod:`dem_taichi.protocol`) and the probes (:mod:`dem_taichi.probing`) are
 built from these three: the strain-rate cap of the inertial number, a relaxation at fixed cell
-to a static state, and a strain increment applied at constant rates.
+to a static state, and a strain increment applied at constant rates. The ageing of the gas
+before the compression to A (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`) adds two: a
+run at fixed cell (:func:`hold`) and a rescale of the bodies' velocities (:func:`rescale_speed`).
 
 Symbols: I = ε̇ d sqrt(ρ/p) inertial number (ρ = rod mass / rod solid area, 2D density; d disc
 diameter; p mean stress), UFR unbalanced-force ratio, KE kinetic energy, ε logarithmic strain
@@ -18,7 +20,7 @@ from typing import Any, cast
 from dem_taichi.engine import CellControl
 from dem_taichi.measures import Measures
 
-__all__ = ["strain_rate_cap", "relax", "apply_strain"]
+__all__ = ["strain_rate_cap", "relax", "apply_strain", "hold", "rescale_speed"]
 
 
 def strain_rate_cap(sim, mean_stress: float, floor_stress: float, safety: float = 1.0) -> float:
@@ -88,3 +90,30 @@ def apply_strain(
     rates = (strain[0] / (n * dt), strain[1] / (n * dt))
     control = _control(stage, rates[0], rates[1])
     return sim.run(n, control, output_every=output_every or n, writer=writer)
+
+
+def hold(sim, stage: str, n_steps: int) -> Measures:
+    """Run ``n_steps`` steps at fixed cell (strain rates 0) under the stage label ``stage``;
+    returns the measures at the end (no history records: the caller writes them)."""
+    return sim.run(n_steps, _control(stage, 0.0, 0.0), output_every=n_steps)
+
+
+def rescale_speed(sim, speed: float) -> float:
+    """Scale every body's velocity and angular velocity by s = ``speed`` / (rms velocity
+    component, sqrt(<v_x² + v_y²>/2), the measure of ``[particles] initial_speed``) so that it
+    becomes ``speed``; returns the rms velocity component before (rods, or the discs of bonded
+    rods).
+
+    A gas at rest (rms 0) is left as it is. The state is restored with the scaled velocities
+    (:meth:`Simulation.set_state`), so the run continues deterministically from it.
+    """
+    state = sim.get_state()
+    velocity = state["velocity"]
+    before = float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+    if before > 0.0:
+        factor = speed / before
+        state["velocity"] = velocity * velocity.dtype.type(factor)
+        omega = state["angular_velocity"]
+        state["angular_velocity"] = omega * omega.dtype.type(factor)
+        sim.set_state(state)
+    return before

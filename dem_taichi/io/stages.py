@@ -5,7 +5,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-#: Stage labels and their integer codes, in the order of the protocol (model.md §1.6).
+#: Stage labels and their integer codes, in the order of the protocol (model.md §1.6); stages
+#: added later are appended at the end so the codes of the others keep their values (files
+#: written before read the same): "aggregation" is the optional gas-ageing stage before
+#: "isotropic_to_A" (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`).
 STAGE_CODES: Mapping[str, int] = MappingProxyType(
     {
         "gas": 0,
@@ -17,6 +20,7 @@ STAGE_CODES: Mapping[str, int] = MappingProxyType(
         "relax": 6,
         "probe": 7,
         "other": 8,
+        "aggregation": 9,
     }
 )
 STAGE_LABELS: Mapping[int, str] = MappingProxyType({c: s for s, c in STAGE_CODES.items()})

@@ -1,0 +1,406 @@
+"""The aggregation (gas-ageing) stage before the compression to A and the A criterion relative to
+the attraction (issue 19): ``[protocol] aggregation*`` and ``pressure_tolerance_reduced``.
+
+Scenes: the smoke scene (40 rods) made strongly attractive (F_max = 100, k_a = 200: the range
+g_max = 0.5 d of the smoke scene, ten times its force), so that the rods stick when they meet.
+Stage tests run the stage alone on a :class:`Simulation` (about 10⁴ steps, a second); one
+reduced protocol (A then one A→B increment, no probes) with aggregation is run uninterrupted,
+interrupted during the ageing, and interrupted after A, and resumed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from types import MappingProxyType
+
+import numpy as np
+import pytest
+
+from dem_taichi.config import SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.io.schema import stage_code
+from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig, protocol_settings
+
+ATTRACTIVE = {"f_max_edge": 100.0, "f_max_inner": 100.0, "k_a_edge": 200.0, "k_a_inner": 200.0}
+
+
+def attractive_scene(probing: ProbingConfig | None = None, **protocol):
+    """The smoke scene with ten times its attraction and the given ``[protocol]`` keys."""
+    base = load_scene("smoke").replace(long_range=ATTRACTIVE)
+    config = dataclasses.replace(protocol_settings(base), **protocol)
+    extensions = {"protocol": config, "probing": probing or ProbingConfig(enabled=False)}
+    return dataclasses.replace(base, extensions=MappingProxyType(extensions), source_text="")
+
+
+class Records:
+    """A history writer that keeps the records."""
+
+    def __init__(self) -> None:
+        self.records: list[dict] = []
+
+    def append(self, frame: dict) -> int:
+        self.records.append(dict(frame))
+        return len(self.records)
+
+
+def run_stage(scene, progress: bool = False):
+    """A fresh simulation of ``scene`` after its aggregation stage: (runner, details, records)."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.paths import ProtocolRunner
+
+    sim = Simulation(scene)
+    history = Records()
+    runner = ProtocolRunner(
+        sim, protocol_settings(scene), ProbingConfig(), history=history, progress=progress
+    )
+    details = runner.aggregate()
+    return runner, details, history.records
+
+
+# -- the stage on its own ---------------------------------------------------------------------
+def test_stage_is_deterministic_bit_for_bit():
+    """Two runs of the stage (compression, ageing with the speed rescaled at every check) from
+    the same scene end in the same state bit for bit, with the same records."""
+    from dem_taichi.state import states_equal
+
+    scene = attractive_scene(
+        aggregation="time",
+        aggregation_time=3.0,
+        aggregation_area_fraction=0.2,
+        aggregation_speed=0.2,
+    )
+    first, details_1, records_1 = run_stage(scene)
+    second, details_2, records_2 = run_stage(scene)
+    assert states_equal(first.sim.get_state(), second.sim.get_state())
+    assert details_1 == details_2
+    assert [r["step"] for r in records_1] == [r["step"] for r in records_2]
+    # and the rescale did act: the gas was not left at its own speed
+    velocity = first.sim.get_state()["velocity"]
+    assert details_1["aging_steps"] > 0 and np.sqrt(np.mean(velocity**2)) > 0.0
+
+
+def test_free_ageing_raises_the_coordination_number_at_fixed_cell():
+    """Free cooling of the attractive gas at its initial area fraction for 20 time units: the
+    rods stick, Z grows from 0; the cell does not change; the records are labelled
+    "aggregation" at the scene's output cadence; the stage is recorded with its steps."""
+    scene = attractive_scene(aggregation="time", aggregation_time=20.0)
+    runner, details, records = run_stage(scene)
+    assert details["coordination_number_start"] == 0.0  # the gas starts force-free
+    assert details["coordination_number"] > details["coordination_number_start"] + 0.5
+    assert details["area_fraction"] == details["area_fraction_start"]
+    dt = runner.sim.time_step
+    assert details["aging_steps"] == int(np.ceil(20.0 / dt - 1e-9))
+    assert details["aging_time"] == pytest.approx(20.0, abs=dt)
+    every = scene.output.every
+    steps = [r["step"] for r in records]
+    assert steps[:-1] == list(range(every, every * len(steps), every))
+    assert steps[-1] == details["aging_steps"]
+    assert {int(r["stage"]) for r in records} == {stage_code("aggregation")}
+    assert records[-1]["coordination_number"] == details["coordination_number"]
+    record = runner.stages["aggregation"]
+    assert record.steps == details["aging_steps"] and record.seconds > 0
+
+
+def test_compression_reaches_the_asked_area_fraction():
+    """The gas is brought from φ = 0.15 to 0.3 (½ ln 2 per axis at gas_strain_rate) before the
+    ageing, then aged at that cell."""
+    scene = attractive_scene(
+        aggregation="time", aggregation_time=0.5, aggregation_area_fraction=0.3
+    )
+    runner, details, records = run_stage(scene)
+    sim = runner.sim
+    assert details["area_fraction_start"] == pytest.approx(0.15, rel=1e-12)
+    assert details["area_fraction"] == pytest.approx(0.3, rel=1e-9)
+    assert 1.0 / sim.measure()["specific_volume"] == pytest.approx(0.3, rel=1e-9)
+    # the compression ran at the gas rate: ½ ln 2 / (rate Δt) steps, and then the ageing
+    rate = protocol_settings(scene).gas_strain_rate
+    compression = int(np.ceil(0.5 * np.log(2.0) / (rate * sim.time_step)))
+    assert runner.stages["aggregation"].steps == compression + details["aging_steps"]
+    assert records[0]["strain_rate_xx"] == pytest.approx(rate, rel=1e-3)
+
+
+def test_coordination_criterion_stops_when_z_reaches_the_value():
+    """With aggregation = "coordination" the ageing stops at the first check where Z ≥ the
+    value: every earlier check (one record per check here: output every = check steps) is
+    below it."""
+    scene = attractive_scene(
+        aggregation="coordination",
+        aggregation_coordination=1.0,
+        aggregation_max_time=50.0,
+        aggregation_speed=0.3,
+    )
+    assert scene.output.every == protocol_settings(scene).relax_check_steps
+    runner, details, records = run_stage(scene)
+    assert details["criterion_met"] is True and "note" not in details
+    z = [r["coordination_number"] for r in records]
+    assert z[-1] >= 1.0 and all(value < 1.0 for value in z[:-1])
+    assert details["coordination_number"] == z[-1]
+    assert details["aging_time"] < 50.0
+
+
+def test_coordination_cap_stops_with_a_note(capsys):
+    """A Z the gas cannot reach in the time given: the ageing stops at aggregation_max_time
+    with one line of note (not an error)."""
+    scene = attractive_scene(
+        aggregation="coordination", aggregation_coordination=6.0, aggregation_max_time=1.0
+    )
+    runner, details, _ = run_stage(scene, progress=True)
+    assert details["criterion_met"] is False
+    dt = runner.sim.time_step
+    assert details["aging_steps"] == int(np.ceil(1.0 / dt - 1e-9))
+    notes = [line for line in capsys.readouterr().err.splitlines() if "note:" in line]
+    assert len(notes) == 1 and notes[0] == details["note"]
+    assert "aggregation_coordination = 6" in notes[0] and "aggregation_max_time = 1" in notes[0]
+
+
+def test_pressure_tolerance_reduced_gives_the_absolute_tolerance():
+    """P* = p d / F_max: the tolerance is P* max(f_max_edge, f_max_inner) / d; unset, it is
+    pressure_tolerance."""
+    scene = load_scene("smoke").replace(
+        long_range={"f_max_edge": 10.0, "f_max_inner": 30.0},
+        particles={"diameter": 2.0, "spacing": 2.0},
+    )
+    config = ProtocolConfig(pressure_tolerance=0.7, pressure_tolerance_reduced=0.05)
+    assert config.transition_pressure_tolerance(scene) == pytest.approx(0.05 * 30.0 / 2.0)
+    assert ProtocolConfig(pressure_tolerance=0.7).transition_pressure_tolerance(scene) == 0.7
+
+
+# -- the whole protocol with aggregation, uninterrupted and resumed ---------------------------
+def protocol_scene():
+    """Reduced protocol on the attractive smoke: aggregation to Z = 2 (at φ = 0.25, speed
+    0.2), A with P* = 0.03 (p > 3), one A→B increment to p = 14, no probes."""
+    return attractive_scene(
+        aggregation="coordination",
+        aggregation_coordination=2.0,
+        aggregation_max_time=20.0,
+        aggregation_area_fraction=0.25,
+        aggregation_speed=0.2,
+        pressure_tolerance_reduced=0.03,
+        target_mean_stress=14.0,
+        min_compression_increment=0.0025,
+        transition_pressure_factor=1.0,
+        path_increments=1,
+        run_k0=False,
+        run_unloading=False,
+        radial_stress_ratios="",
+    )
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    from dem_taichi.protocol import run_protocol
+
+    return run_protocol(protocol_scene(), tmp_path_factory.mktemp("aggregation_run"))
+
+
+def _release_runs() -> None:
+    import gc
+
+    gc.collect()
+
+
+def _outputs(run) -> dict[str, np.ndarray]:
+    """Every variable of history.nc and relaxed_states.nc and of the configuration at every
+    labelled state, keyed ``<file>/<variable>`` (the runs have no probes)."""
+    from dem_taichi.io import open_configuration, open_history
+
+    out: dict[str, np.ndarray] = {}
+    files = [(key, open_history) for key in ("history", "relaxed_states")]
+    files += [(f"configuration_{label}", open_configuration) for label in run.states]
+    for key, opener in files:
+        ds = opener(run.files[key])
+        for name in sorted(ds.variables):
+            values = np.asarray(ds[name].values)
+            out[f"{key}/{name}"] = values.astype(str) if values.dtype == object else values
+    return out
+
+
+def _assert_same_outputs(got, want) -> None:
+    """Two runs on the same machine: every output equal bit for bit."""
+    a, b = _outputs(got), _outputs(want)
+    assert sorted(a) == sorted(b)
+    different = [
+        key
+        for key in a
+        if a[key].dtype != b[key].dtype
+        or a[key].shape != b[key].shape
+        or a[key].tobytes() != b[key].tobytes()
+    ]
+    assert not different, different
+
+
+def test_protocol_records_the_aggregation_stage(full_run):
+    """The stage comes between the gas and the compression to A in the history, is a stage of
+    the summary with its steps and wall time, and its details are written with the
+    transition; A is found with the tolerance P* F_max / d = 3."""
+    import json
+
+    from dem_taichi.io import open_history
+
+    assert list(full_run.stages)[:2] == ["aggregation", "isotropic_to_A"]
+    stage = full_run.stages["aggregation"]
+    assert stage.steps > 0 and stage.seconds > 0
+    details = full_run.transition_details
+    assert details["pressure_tolerance"] == pytest.approx(0.03 * 100.0 / 1.0)
+    assert details["pressure_tolerance_reduced"] == 0.03
+    assert full_run.states["A"].measures["mean_stress"] > 3.0
+    agg = details["aggregation"]
+    assert agg["criterion_met"] and agg["coordination_number"] >= 2.0
+    assert agg["coordination_number"] > agg["coordination_number_start"]
+    assert agg["area_fraction"] == pytest.approx(0.25, rel=1e-9)
+    codes = np.asarray(open_history(full_run.files["history"])["stage"].values)
+    gas, aggregation, iso = (stage_code(s) for s in ("gas", "aggregation", "isotropic_to_A"))
+    first_iso = int(np.argmax(codes == iso))
+    assert codes[0] == gas and set(codes[1:first_iso]) == {aggregation}
+    assert aggregation not in set(codes[first_iso:])
+    summary = json.loads((full_run.out_dir / "summary.json").read_text())
+    assert summary["stages"]["aggregation"]["steps"] == stage.steps
+    assert summary["transition"]["aggregation"]["criterion_met"] is True
+
+
+def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run, tmp_path):
+    """Stopped (as Ctrl-C would) at the third check of the ageing: nothing is saved, the
+    resume starts again from the gas and ends with the uninterrupted run's outputs."""
+    import dem_taichi.paths as paths
+    from dem_taichi.protocol import run_protocol
+
+    original = paths.hold
+    calls = []
+
+    def stop_at_third_check(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    paths.hold = stop_at_third_check
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(protocol_scene(), tmp_path)
+    finally:
+        paths.hold = original
+    _release_runs()
+    assert not (tmp_path / "resume" / "A.npz").exists()
+    resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
+    _release_runs()
+    _assert_same_outputs(resumed, full_run)
+    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+
+
+def test_run_interrupted_after_a_resumes_to_the_same_outputs(full_run, tmp_path):
+    """Stopped at the start of the branch from A: state A (with the aggregation's records and
+    log) is saved; the resume runs A→B only and ends with the uninterrupted run's outputs."""
+    import dem_taichi.branches as branches
+    from dem_taichi.protocol import run_protocol
+
+    original = branches.run_branch_on
+
+    def stop(runner, branch):
+        raise KeyboardInterrupt
+
+    branches.run_branch_on = stop
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(protocol_scene(), tmp_path)
+    finally:
+        branches.run_branch_on = original
+    _release_runs()
+    assert (tmp_path / "resume" / "A.npz").exists()
+    resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
+    _release_runs()
+    _assert_same_outputs(resumed, full_run)
+    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
+    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+
+
+# -- the keys: defaults, round trip, refusals ---------------------------------------------------
+def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
+    """Unset keys are not written (the TOML and hash of existing scenes do not change); set
+    ones round-trip."""
+    toml = scene_to_toml(load_scene("smoke"))
+    assert "aggregation" not in toml and "pressure_tolerance_reduced" not in toml
+    assert not ProtocolConfig().aggregates
+    assert not ProtocolConfig(aggregation="none").aggregates
+    scene = scene_from_toml(
+        '[long_range]\nenabled = true\npattern = "acidic"\n'
+        '[protocol]\naggregation = "coordination"\naggregation_coordination = 2.5\n'
+        "aggregation_max_time = 100.0\naggregation_area_fraction = 0.2\n"
+        "aggregation_speed = 0.1\npressure_tolerance_reduced = 0.02\n"
+    )
+    config = protocol_settings(scene)
+    assert config.aggregates and config.aggregation_coordination == 2.5
+    assert scene_from_toml(scene_to_toml(scene)).extensions["protocol"] == config
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('aggregation = "sometimes"\n', ["[protocol] aggregation", "none | time | coordination"]),
+        ('aggregation = "coordination"\naggregation_max_time = 10.0\n',
+         ["[protocol] aggregation = 'coordination' needs aggregation_coordination"]),
+        ('aggregation = "coordination"\naggregation_coordination = 2.0\n',
+         ["needs aggregation_max_time"]),
+        ('aggregation = "time"\n', ["[protocol] aggregation = 'time' needs aggregation_time"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_coordination = 2.0\n',
+         ["[protocol] aggregation_coordination = 2.0 is used only with aggregation = "
+          "'coordination'"]),
+        ("aggregation_time = 5.0\n", ["aggregation_time", "aggregation = 'none'"]),
+        ("aggregation_area_fraction = 0.3\n", ["aggregation_area_fraction", "used only"]),
+        ('aggregation = "time"\naggregation_time = -1.0\n', ["aggregation_time", "out of range"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_area_fraction = 1.0\n',
+         ["[protocol] aggregation_area_fraction = 1.0 is out of range", "1.0)"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.0\n',
+         ["aggregation_speed", "out of range"]),
+        ("pressure_tolerance_reduced = 0.0\n", ["pressure_tolerance_reduced", "out of range"]),
+    ],
+)  # fmt: skip
+def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
+    with pytest.raises(SceneError) as info:
+        scene_from_toml("[protocol]\n" + text)
+    message = str(info.value)
+    assert "\n" not in message
+    for word in words:
+        assert word in message
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('[protocol]\naggregation = "time"\naggregation_time = 1.0\n'
+         "aggregation_area_fraction = 0.1\n",
+         ["[protocol] aggregation_area_fraction = 0.1 is below [particles] "
+          "initial_area_fraction = 0.15", "[0.15, 1)"]),
+        ("[long_range]\nenabled = false\n[protocol]\npressure_tolerance_reduced = 0.05\n",
+         ["[protocol] pressure_tolerance_reduced = 0.05 needs long-range forces",
+          "enabled = false"]),
+        ('[long_range]\nenabled = true\npattern = "neutral"\n'
+         "[protocol]\npressure_tolerance_reduced = 0.05\n",
+         ["pressure_tolerance_reduced", "pattern = 'neutral'"]),
+    ],
+)  # fmt: skip
+def test_keys_that_do_not_fit_the_scene_are_refused_before_a_run(text, words):
+    """Checks that need [particles] or [long_range]: refused by protocol_settings, which every
+    protocol run calls first (after the --pattern override)."""
+    scene = scene_from_toml("[particles]\ninitial_area_fraction = 0.15\n" + text)
+    with pytest.raises(SceneError) as info:
+        protocol_settings(scene)
+    message = str(info.value)
+    assert "\n" not in message
+    for word in words:
+        assert word in message
+
+
+def test_command_line_refuses_a_reduced_tolerance_on_a_neutral_run_in_one_line(tmp_path):
+    """--pattern neutral turns the attraction off: P* has no meaning, refused (exit 2) in one
+    line before the run starts."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(tmp_path / "x"),
+         "--pattern", "neutral", "--set", "protocol.pressure_tolerance_reduced=0.05"],
+        capture_output=True,
+        text=True,
+    )  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "pressure_tolerance_reduced" in lines[0], proc.stderr
+    assert not (tmp_path / "x" / "history.nc").exists()
