@@ -149,8 +149,10 @@ def _parser():
 
 
 def _table(argv: list[str]) -> int:
+    from dem_taichi.cli import refuse_control_characters
     from tiv_model.command_line import UsageError, replace_file
 
+    refuse_control_characters(argv)
     args = _parser().parse_args(argv)
     folder = Path(args.run_dir)
     if not folder.is_dir():

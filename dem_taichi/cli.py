@@ -31,6 +31,9 @@ strain-controlled isotropic compression at ``[control] compression_strain_rate``
 - with ``--paraview``: ``paraview/step_<step>.vtu`` at every checkpoint and at the end, listed
   in ``paraview/run.pvd`` (:mod:`dem_taichi.io.vtk_snapshots`).
 
+A value with a line break or other control character (``--out``, the scene, ``--stage``, any
+path or label of ``run``, ``protocol``, ``snapshot``) is refused in one line naming the flag.
+
 A run never writes through a symbolic link: a link in ``--out`` where a run writes is refused
 (one line), never followed nor replaced. ``snapshot`` refuses an existing ``--out`` file unless
 ``--overwrite`` (then the file is replaced atomically, a link by a file, never its target).
@@ -106,6 +109,31 @@ class _StopSignals:
     def __exit__(self, *exc) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
+
+
+#: Flags whose values are checked elsewhere with a message of their own (``--set``: config).
+_OWN_CHECK = ("--set",)
+
+
+def refuse_control_characters(argv: list[str]) -> None:
+    """Refuse (:class:`UsageError`, one line naming the flag) a command-line value holding a
+    line break or other control character (tab included): a pasted line break would cut a
+    path (``--out``, the scene, the state) or a label in two, and the run would write where
+    the user did not say. ``--set`` values are checked by the scene loader (tabs allowed)."""
+    for i, arg in enumerate(argv):
+        bad = next((c for c in arg if ord(c) < 32 or ord(c) == 127), None)
+        if bad is None:
+            continue
+        flag, _, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
+        if not flag and i > 0 and argv[i - 1].startswith("--"):
+            flag = argv[i - 1]
+        if flag in _OWN_CHECK:
+            continue
+        what = f"{flag} {value!r}" if flag else f"argument {value!r}"
+        raise UsageError(
+            f"{what} contains the control character {bad!r} (a line break?): give each path "
+            "and label on one line"
+        )
 
 
 def _say(line: str) -> None:
@@ -404,6 +432,7 @@ def _parser() -> ArgumentParser:
 
 
 def _command(argv: list[str]) -> int:
+    refuse_control_characters(argv)
     args = _parser().parse_args(argv)
     return _snapshot(args) if args.command == "snapshot" else _run(args)
 
@@ -420,8 +449,12 @@ def main(argv: list[str] | None = None) -> int:
         from dem_taichi.io.run_directory import release_all
         from dem_taichi.protocol import main as protocol_main
 
+        rest = argv[:first] + argv[first + 1 :]
         try:
-            return protocol_main(argv[:first] + argv[first + 1 :], prog=f"{PROG} protocol")
+            code = run_command(f"{PROG} protocol", refuse_control_characters, rest)
+            if code:  # a control character in a path or label: one line, exit code 2
+                return code
+            return protocol_main(rest, prog=f"{PROG} protocol")
         finally:
             release_all()  # the protocol's run folder: manifest completed, lock released
     if first < len(argv) and argv[first] == "sweep":

@@ -63,7 +63,7 @@ def smoke_with(**changes) -> str:
 @dataclass(frozen=True)
 class Case:
     id: str
-    entry: str  # dem | protocol | tiv | bridge
+    entry: str  # dem | protocol | tiv | bridge | sweep | anisotropy
     argv: tuple[str, ...]
     words: tuple[str, ...]
     scene: str | None = None  # written to {scene}
@@ -408,6 +408,16 @@ ISSUE22_CASES = [
     Case("sweep-set-k_n-1e308", "sweep", SWEEP, ("member base (no keys): [contact] k_n = 1e+308",), setup=sweep_file(SMOKE_SWEEP + '[sweep.set]\n"contact.k_n" = 1e308\n[[sweep.members]]\nname = "base"\n')),  # noqa: E501
     Case("sweep-grid-k_t-ten-times", "sweep", SWEEP, ("member k_t-1e06", "[contact] k_t = 1000000.0 is 10 × k_n"), setup=sweep_file(SMOKE_SWEEP + '[sweep.grid]\n"contact.k_t" = [1e6]\n')),  # noqa: E501
     Case("sweep-out-newline", "sweep", ("sweep.toml", "--out", "o\nut"), ("--out", "control character '\\n'"), setup=sweep_file(SMOKE_SWEEP + '[sweep.grid]\n"scene.seed" = [1]\n')),  # noqa: E501
+    Case("run-out-newline", "dem", ("run", "{scene}", "--out", "o\nut"), ("--out 'o\\nut'", "control character '\\n'", "on one line"), smoke_with()),  # noqa: E501
+    Case("run-out-equals-carriage-return", "dem", ("run", "{scene}", "--out=out\r"), ("--out 'out\\r'", "control character '\\r'"), smoke_with()),  # noqa: E501
+    Case("run-out-tab", "dem", ("run", "{scene}", "--out", "o\tut"), ("--out", "control character '\\t'"), smoke_with()),  # noqa: E501
+    Case("run-scene-newline", "dem", ("run", "scene.toml\n", "--out", "{out}"), ("argument 'scene.toml\\n'", "control character"), smoke_with()),  # noqa: E501
+    Case("protocol-out-newline", "dem", ("protocol", "{scene}", "--out", "o\nut"), ("protocol: error: --out 'o\\nut'", "control character '\\n'"), smoke_with()),  # noqa: E501
+    Case("protocol-out-escape", "dem", ("protocol", "{scene}", "--out", "o\x1b[2Jut"), ("--out", "control character '\\x1b'"), smoke_with()),  # noqa: E501
+    Case("snapshot-out-newline", "dem", ("snapshot", "state.npz", "--out", "s\n.vtu"), ("--out 's\\n.vtu'", "control character")),  # noqa: E501
+    Case("snapshot-stage-newline", "dem", ("snapshot", "state.npz", "--out", "s.vtu", "--stage", "A\nB"), ("--stage 'A\\nB'",)),  # noqa: E501
+    Case("anisotropy-dir-newline", "anisotropy", ("ru\nn",), ("argument 'ru\\nn'", "control character")),  # noqa: E501
+    Case("sweep-summarise-out-newline", "sweep", ("summarise", ".", "--out", "a\n.md"), ("--out", "control character '\\n'")),  # noqa: E501
     Case("tiv-param-k-1e308", "tiv", (*K0, "--param", "k=1e308"), ("parameter bulk_stiffness_coefficient (k", "|k| <= 1e+08")),  # noqa: E501
     Case("tiv-param-r-1e300", "tiv", (*K0, "--param", "r=1e300"), ("(r, preconsolidation exponent", "|r| <= 1e+08")),  # noqa: E501
     Case("tiv-param-N-1e308", "tiv", (*K0, "--param", "N=1e308"), ("ncl_intercept (N", "|N| <= 1e+08")),  # noqa: E501
@@ -436,6 +446,8 @@ def entry(name: str):
         from tiv_model.cli import main
     elif name == "sweep":
         from dem_taichi.sweep import main
+    elif name == "anisotropy":
+        from dem_taichi.anisotropy import main
     else:
         from bridge.pipeline import main
     return main
