@@ -250,7 +250,13 @@ class Scene:
         )
 
     def replace(self, **sections: Any) -> Scene:
-        """Copy with whole sections replaced or with ``section={"key": value}`` updates."""
+        """Copy with whole sections replaced or with ``section={"key": value}`` updates.
+
+        The copy passes the checks a scene file passes: each key's own, and those across
+        sections (k_t within :func:`tangential_stiffness_limit` of k_n at ``dt_safety``, a
+        finite time step, bonded ``dt_safety``, the acidic pattern's ``n_spheres`` >= 3):
+        :class:`SceneError` naming the keys otherwise. Change keys that depend on each other in
+        one call."""
         updates = {}
         for name, value in sections.items():
             if name not in _CORE_SECTIONS:
@@ -262,7 +268,9 @@ class Scene:
                 _check_keys(type(current), name, value)
                 value = dataclasses.replace(current, **value)
             updates[name] = value
-        return dataclasses.replace(self, **updates, source_text="")
+        scene = dataclasses.replace(self, **updates, source_text="")
+        _check_scene(scene)
+        return scene
 
     def with_changes(self, **sections: dict) -> Scene:
         """Alias of :meth:`replace` taking ``section={"key": value}`` dicts."""

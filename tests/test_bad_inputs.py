@@ -588,6 +588,9 @@ def _api_cases():
         ("run_protocol-resume-nothing", lambda t: run_protocol("smoke", t / "c", resume=True), RunDirectoryError, "no run to continue"),  # noqa: E501
         ("scene_with_overrides-no-value", lambda t: scene_with_overrides(smoke(), ["contact.mu"]), SceneError, "expected section.key=value"),  # noqa: E501
         ("scene_with_overrides-unknown", lambda t: scene_with_overrides(smoke(), ["contact.mux=1"]), SceneError, "unknown key(s) mux"),  # noqa: E501
+        ("Scene.replace-k_t-beyond-the-bound", lambda t: smoke().replace(contact={"k_t": 1e6}), SceneError, "[contact] k_t = 1000000.0 is 10 × k_n = 100000.0: allowed k_t/k_n <= 6"),  # noqa: E501
+        ("Scene.replace-k_n-below-k_t", lambda t: smoke().replace(contact={"k_n": 300.0}), SceneError, "[contact] k_t = 20000.0 is 66.7 × k_n = 300.0"),  # noqa: E501
+        ("Scene.replace-acidic-two-discs", lambda t: smoke().replace(particles={"n_spheres": 2}, long_range={"enabled": True, "pattern": "acidic"}), SceneError, "pattern = 'acidic' needs n_spheres >= 3"),  # noqa: E501
         ("Scene.replace-unknown-key", lambda t: smoke().replace(particles={"n_rodz": 3}), SceneError, "unknown key(s) n_rodz"),  # noqa: E501
         ("Scene.replace-unknown-section", lambda t: smoke().replace(partikles={}), SceneError, "no such section"),  # noqa: E501
         ("with_preset-unknown", lambda t: with_preset(smoke(), "quick"), SceneError, "fast, balanced, accurate"),  # noqa: E501
