@@ -285,11 +285,10 @@ class ProtocolRunner:
         if speed is not None:
             rescale_speed(sim, speed)
         self._since_output = 0
-        done, check, met = 0, 0, target_z is None
+        done, check = 0, 0
         z = measures["coordination_number"]
-        if target_z is not None and z >= target_z:
-            met = True  # reached by the compression already
-        while not (target_z is not None and met) and done < total:
+        reached = target_z is not None and z >= target_z  # by the compression already
+        while not reached and done < total:
             n = min(c.relax_check_steps, total - done)
             measures = hold(sim, stage, n)
             done += n
@@ -297,17 +296,18 @@ class ProtocolRunner:
             record.steps += n
             self._output(measures, n)
             z = measures["coordination_number"]
-            progress.step(
-                check,
-                f"[{stage}] t={done * dt:.4g}/{limit:g} Z={z:.3f} "
-                f"Zm={measures['mechanical_coordination_number']:.3f} "
-                f"KE/N={measures['kinetic_energy'] / sim.n_rods:.3g} "
-                f"p={measures['mean_stress']:.4g}",
-            )
-            if target_z is not None and z >= target_z:
-                met = True
-            elif speed is not None and done < total:
+            reached = target_z is not None and z >= target_z
+            if self._since_output == 0 or reached or done >= total:  # a line per record
+                progress.step(
+                    check,
+                    f"[{stage}] t={done * dt:.4g}/{limit:g} Z={z:.3f} "
+                    f"Zm={measures['mechanical_coordination_number']:.3f} "
+                    f"KE/N={measures['kinetic_energy'] / sim.n_rods:.3g} "
+                    f"p={measures['mean_stress']:.4g}",
+                )
+            if speed is not None and not reached and done < total:
                 rescale_speed(sim, speed)
+        met = reached or target_z is None
         if self.history is not None and self._since_output > 0:
             self.history.append(measures)  # the end of the stage
         self._since_output = 0

@@ -80,6 +80,48 @@ def test_stage_is_deterministic_bit_for_bit():
     assert details_1["aging_steps"] > 0 and np.sqrt(np.mean(velocity**2)) > 0.0
 
 
+def test_rescale_speed_sets_the_rms_velocity_component():
+    """rescale_speed scales velocities and angular velocities by one factor so that
+    sqrt(<v_x² + v_y²>/2) becomes the speed asked; it returns the rms before."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.quasistatic import rescale_speed
+
+    sim = Simulation(attractive_scene())
+    before = sim.get_state()
+    rms = float(np.sqrt(np.mean(before["velocity"] ** 2)))
+    assert rescale_speed(sim, 0.3) == pytest.approx(rms, rel=1e-12)
+    after = sim.get_state()
+    assert np.sqrt(np.mean(after["velocity"] ** 2)) == pytest.approx(0.3, rel=1e-12)
+    factor = 0.3 / rms
+    np.testing.assert_allclose(after["velocity"], before["velocity"] * factor, rtol=1e-12)
+    np.testing.assert_allclose(
+        after["angular_velocity"], before["angular_velocity"] * factor, rtol=1e-12
+    )
+
+
+def test_speed_is_rescaled_at_the_start_and_after_every_check(monkeypatch):
+    """With aggregation_speed the rescale runs at the start of the ageing and after every
+    check but the last: the gas keeps the rms speed asked."""
+    import dem_taichi.paths as paths
+
+    calls: list[float] = []
+    original = paths.rescale_speed
+
+    def counting(sim, speed):
+        calls.append(speed)
+        return original(sim, speed)
+
+    monkeypatch.setattr(paths, "rescale_speed", counting)
+    scene = attractive_scene(aggregation="time", aggregation_time=3.0, aggregation_speed=0.25)
+    runner, details, records = run_stage(scene)
+    checks = -(-details["aging_steps"] // protocol_settings(scene).relax_check_steps)
+    assert calls == [0.25] * checks  # the start and after checks 1 … checks − 1
+    # every record comes one check after a rescale: its kinetic energy per rod is far above
+    # that of the free gas (rms 0.05 per component, rod mass 5: 0.025)
+    ke = [r["kinetic_energy"] / runner.sim.n_rods for r in records]
+    assert min(ke) > 10 * 0.5 * 5.0 * 2 * 0.05**2
+
+
 def test_free_ageing_raises_the_coordination_number_at_fixed_cell():
     """Free cooling of the attractive gas at its initial area fraction for 20 time units: the
     rods stick, Z grows from 0; the cell does not change; the records are labelled
