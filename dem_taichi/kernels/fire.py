@@ -7,7 +7,9 @@ mixing between the kick and the drift, the delay N_delay before Δt grows, and t
 (no Δt decrease during the first N_delay steps). The half step back on P ≤ 0 (x ← x − Δt v/2)
 is left out: it would move the bodies without the relative motion that the tangential and
 rolling springs integrate (ξ += v_t Δt in :mod:`.pairs`), so the springs would no longer follow
-the contacts' displacement.
+the contacts' displacement. Δt_min clamps the decrease (FIRE 2.0 skips a decrease that would
+go below it): with Δt_min = Δt of the scene, a Δt grown too large comes back to the scene's
+stable Δt at the first reset, and never below it.
 
 The generalised velocity of the N bodies is (v, ω) with the kinetic-energy metric, so that the
 power and the norms carry consistent units (M mass, I moment of inertia of a body):
@@ -16,7 +18,7 @@ power and the norms carry consistent units (M mass, I moment of inertia of a bod
 Per step (F, τ at the current positions; v, ω the velocities of the last drift):
   P > 0: N+ ← N+ + 1, N− ← 0; if N+ > N_delay: Δt ← min(f_inc Δt, Δt_max), α ← f_α α
   P ≤ 0: N+ ← 0, N− ← N− + 1; unless still within the first N_delay steps:
-         Δt ← f_dec Δt (if ≥ Δt_min), α ← α_start; v, ω ← 0 (the springs ξ, ψ are kept)
+         Δt ← max(f_dec Δt, Δt_min), α ← α_start; v, ω ← 0 (the springs ξ, ψ are kept)
   v ← v + Δt F/M,  ω ← ω + Δt τ/I                      (kick, no local damping)
   v ← (1 − α) v + α (|V|/|G|) F/M,  ω ← (1 − α) ω + α (|V|/|G|) τ/I   (mixing)
   s ← s + Δt v/L,  θ ← θ + Δt ω                          (drift)
@@ -97,8 +99,7 @@ def fire_update(n_rods, vel: T, omega: T, force: T, torque: T, params: T, fire: 
         fire[FIRE_N_POS] = 0.0
         fire[FIRE_N_NEG] = ti.min(fire[FIRE_N_NEG] + 1.0, _COUNT_CAP)
         if fire[FIRE_STEPS] >= fire[FIRE_N_DELAY]:  # FIRE 2.0's initial delay
-            if dt * fire[FIRE_F_DEC] >= fire[FIRE_DT_MIN]:
-                dt = dt * fire[FIRE_F_DEC]
+            dt = ti.max(dt * fire[FIRE_F_DEC], fire[FIRE_DT_MIN])
             alpha = fire[FIRE_ALPHA_START]
         fire[FIRE_RESETS] = ti.min(fire[FIRE_RESETS] + 1.0, _COUNT_CAP)
         reset = 1

@@ -81,13 +81,14 @@ def test_fire_relaxes_a_strain_increment_to_the_damped_static_state_in_fewer_ste
     smoke, fire_scene, states
 ):
     """From the strained state both reach UFR < 1e-4, KE/N < 1e-8. Measured (this fixture):
-    damped 4500 steps, p = 0.490, 79 contacts; FIRE 1500 steps, p = 0.563, 77 contacts;
+    damped 4500 steps, p = 0.490, 79 contacts; FIRE 1000 steps, p = 0.562, 76 contacts;
     centroids 0.0043 d rms apart, angles 0.0028 rad at most. Stated tolerance: centroids
     < 0.01 d rms and angles < 0.01 rad, contacts within 5 %, p within 20 %. The stress is the
-    loosest: a 40-rod frictional packing at p ≈ 0.5 has overlaps δ ≈ 1e-5 d, so a static state
-    that differs by 1e-3 d in the centroids (frictional static states depend on the path: the
-    tangential springs load differently under FIRE's mixing than under local damping) differs
-    by tens of % in p. Steps: FIRE fewer than damped (3x here)."""
+    loosest because frictional static states depend on the path, not because of FIRE: the
+    damped relaxation itself, from the same state, ends at p = 0.442, 0.475, 0.490, 0.563,
+    0.560 with local damping α = 0.05, 0.1, 0.2, 0.5, 0.7 (measured); at p ≈ 0.5 the overlaps
+    are δ ≈ 1e-5 d, so 1e-3 d in the centroids is tens of % in p. Steps: FIRE fewer than damped
+    (4.5x here; asserted only as fewer)."""
     damped = _from(smoke, states["strained"])
     md, steps_damped = _relax(damped)
     fire = _from(fire_scene, states["strained"])
@@ -95,6 +96,7 @@ def test_fire_relaxes_a_strain_increment_to_the_damped_static_state_in_fewer_ste
     print(f"damped {steps_damped} steps p {md['mean_stress']:.4g} contacts {md['n_contacts']}")
     print(f"FIRE {steps_fire} steps p {mf['mean_stress']:.4g} contacts {mf['n_contacts']}")
     rms, angle = _centroid_difference(damped, fire)
+    print(f"centroids {rms:.3g} d rms apart, angles {angle:.3g} rad at most")
     assert rms < 0.01 * smoke.particles.diameter
     assert angle < 0.01
     assert abs(mf["n_contacts"] - md["n_contacts"]) <= 0.05 * md["n_contacts"]
@@ -164,13 +166,13 @@ def test_minimise_on_a_damped_scene_is_bitwise_a_fixed_cell_run(smoke, fire_scen
 
 
 def test_the_time_step_is_the_scenes_after_a_fire_call(fire_scene, states):
-    """Δt grows within the call (to at most fire_dt_max × Δt = 2 Δt) and is Δt after it."""
+    """Δt grows within the call (to at most fire_dt_max × Δt = 1.5 Δt) and is Δt after it."""
     sim = _from(fire_scene, states["strained"])
     dt = sim.time_step
     assert dt == fire_scene.time_step
     sim.run(300, CellControl.relaxation("relax"), output_every=150)
     status = sim.fire_status()
-    assert dt < status["dt"] <= 2.0 * dt * (1 + 1e-12)
+    assert dt < status["dt"] <= 1.5 * dt * (1 + 1e-12)
     assert status["steps"] == 300
     assert sim.time_step == dt
     assert sim.a["params"].to_numpy()[layout.P_DT] == dt
@@ -213,4 +215,4 @@ def test_the_scene_toml_of_a_damped_scene_is_unchanged(smoke, fire_scene):
     text = scene_to_toml(fire_scene.replace(integration={"fire_f_inc": 1.05}))
     assert 'relaxation = "fire"' in text and "fire_f_inc = 1.05" in text
     assert scene_from_toml(text).integration.fire["f_inc"] == 1.05
-    assert fire_scene.integration.fire["dt_max"] == 2.0
+    assert fire_scene.integration.fire["dt_max"] == 1.5
