@@ -206,7 +206,8 @@ def test_overwrite_of_the_home_folder_and_above_is_refused(tmp_path, monkeypatch
 
 def test_a_run_dropped_without_closing_lists_what_it_wrote(tmp_path, capsys):
     """The protocol's writers do not register their files: the run lists them when it is
-    closed (here by garbage collection, as when run_protocol returns or raises)."""
+    closed (here by garbage collection, the last resort of a run never closed; run_protocol
+    closes its run when it returns or raises)."""
     out = tmp_path / "run"
     run = start_run(out, "protocol", "smoke", SMOKE)
     (out / "configuration_A.nc").write_text("written by the run")

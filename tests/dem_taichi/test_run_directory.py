@@ -249,8 +249,8 @@ def test_run_protocol_releases_its_lock_when_it_raises_and_when_it_returns(tmp_p
     gc.collect() (the collector is off here)."""
     import gc
 
-    from dem_taichi.protocol import run_protocol
     from dem_taichi.paths import ProtocolRunner
+    from dem_taichi.protocol import run_protocol
 
     from .test_protocol import smoke_protocol_scene
 
