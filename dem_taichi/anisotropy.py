@@ -149,8 +149,7 @@ def _parser():
 
 
 def _table(argv: list[str]) -> int:
-    from dem_taichi.cli import refuse_control_characters
-    from tiv_model.command_line import UsageError, replace_file
+    from tiv_model.command_line import UsageError, refuse_control_characters, replace_file
 
     refuse_control_characters(argv)
     args = _parser().parse_args(argv)

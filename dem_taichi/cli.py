@@ -73,6 +73,7 @@ from tiv_model.command_line import (
     add_common_flags,
     error_line,
     int_in_range,
+    refuse_control_characters,
     replace_file,
     run_command,
 )
@@ -109,31 +110,6 @@ class _StopSignals:
     def __exit__(self, *exc) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
-
-
-#: Flags whose values are checked elsewhere with a message of their own (``--set``: config).
-_OWN_CHECK = ("--set",)
-
-
-def refuse_control_characters(argv: list[str]) -> None:
-    """Refuse (:class:`UsageError`, one line naming the flag) a command-line value holding a
-    line break or other control character (tab included): a pasted line break would cut a
-    path (``--out``, the scene, the state) or a label in two, and the run would write where
-    the user did not say. ``--set`` values are checked by the scene loader (tabs allowed)."""
-    for i, arg in enumerate(argv):
-        bad = next((c for c in arg if ord(c) < 32 or ord(c) == 127), None)
-        if bad is None:
-            continue
-        flag, _, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
-        if not flag and i > 0 and argv[i - 1].startswith("--"):
-            flag = argv[i - 1]
-        if flag in _OWN_CHECK:
-            continue
-        what = f"{flag} {value!r}" if flag else f"argument {value!r}"
-        raise UsageError(
-            f"{what} contains the control character {bad!r} (a line break?): give each path "
-            "and label on one line"
-        )
 
 
 def _say(line: str) -> None:

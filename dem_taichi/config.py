@@ -79,6 +79,7 @@ from dem_taichi.scene_sections import (
     VanDerWaals,
 )
 from dem_taichi.sections import SceneError, SceneSection, read_text_file
+from tiv_model.command_line import first_control_character
 
 __all__ = [
     "SceneError",
@@ -496,7 +497,7 @@ def _parse_override(item: str) -> tuple[str, Any]:
     line break as further keys, which were then dropped without a word."""
     if not isinstance(item, str):
         raise SceneError(f"--set {item!r}: expected a string section.key=value")
-    bad = next((c for c in item if (ord(c) < 32 and c != "\t") or ord(c) == 127), None)
+    bad = first_control_character(item, allow="\t")
     if bad is not None:
         raise SceneError(
             f"--set {item!r} contains the control character {bad!r} (a line break?): give "

@@ -422,8 +422,9 @@ def _parser(prog: str) -> argparse.ArgumentParser:
 
 
 def _main(argv: list[str], prog: str) -> int:
-    from tiv_model.command_line import UsageError
+    from tiv_model.command_line import UsageError, refuse_control_characters
 
+    refuse_control_characters(argv)
     args = _parser(prog).parse_args(argv)
     command = f"{prog} " + " ".join(argv)
     scene = scene_from_options(args.scene, args.preset, args.set)

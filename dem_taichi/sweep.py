@@ -90,7 +90,7 @@ from dem_taichi.sweep_member import (
     write_json,
 )
 from dem_taichi.sweep_spec import MAX_MEMBERS, Member, SweepError, SweepSpec, load_sweep
-from tiv_model.command_line import UsageError
+from tiv_model.command_line import UsageError, first_control_character
 
 INDEX_JSON = "index.json"
 INDEX_CSV = "index.csv"
@@ -462,7 +462,7 @@ def _no_control_characters(flag: str):
     control character (a pasted line break would cut an address or a path in two)."""
 
     def parse(text: str) -> str:
-        bad = next((c for c in text if ord(c) < 32 or ord(c) == 127), None)
+        bad = first_control_character(text)
         if bad is not None:
             raise argparse.ArgumentTypeError(
                 f"{text!r} contains the control character {bad!r} (a line break?)"

@@ -382,6 +382,7 @@ ISSUE22_CASES = [
     Case("set-newline-in-string", "dem", (*RUN, "--set", 'scene.description="a\nb"'), ("--set", "control character '\\n'"), smoke_with()),  # noqa: E501
     Case("set-carriage-return", "dem", (*PROTOCOL, "--set", "contact.mu=0.2\r"), ("control character '\\r'",), smoke_with()),  # noqa: E501
     Case("protocol-module-set-newline", "protocol", ("{scene}", "--out", "{out}", "--set", NEWLINE), ("control character",), smoke_with()),  # noqa: E501
+    Case("protocol-module-out-newline", "protocol", ("{scene}", "--out", "{out}\nx"), ("--out", "control character '\\n'"), smoke_with()),  # noqa: E501
     Case("scene-k_n-1e308", "dem", RUN, ("[contact] k_n = 1e+308 is out of range", "magnitudes 1e-12 to 1e+12"), smoke_with(contact={"k_n": 1e308})),  # noqa: E501
     Case("scene-k_n-tiny", "dem", RUN, ("[contact] k_n = 1e-300 is out of range",), smoke_with(contact={"k_n": 1e-300})),  # noqa: E501
     Case("set-k_n-1e308", "dem", (*RUN, "--set", "contact.k_n=1e308"), ("[contact] k_n = 1e+308",), smoke_with()),  # noqa: E501

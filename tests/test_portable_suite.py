@@ -67,9 +67,7 @@ def test_smoke_references_pass_under_other_simd_and_blas_kernels(tmp_path):
     ]  # fmt: skip
     env = _other_kernels_environment()
     env.pop("DEM_RECORD_REFERENCE", None)  # never overwrite the references from here
-    done = subprocess.run(
-        command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900
-    )
+    done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     tail = (done.stdout + done.stderr)[-3000:]
     assert done.returncode == 0, tail
     assert "2 passed" in done.stdout, tail

@@ -39,6 +39,8 @@ __all__ = [
     "EXIT_DISK_FULL",
     "EXIT_INTERRUPTED",
     "UsageError",
+    "first_control_character",
+    "refuse_control_characters",
     "ArgumentParser",
     "add_common_flags",
     "error_line",
@@ -59,6 +61,35 @@ EXIT_INTERRUPTED = 130
 
 class UsageError(ValueError):
     """A bad input found by a command line's own checks (exit code 2)."""
+
+
+def first_control_character(text: str, allow: str = "") -> str | None:
+    """The first control character (code < 32, or DEL) of ``text`` not in ``allow``, or None.
+
+    A pasted line break in a command-line value would cut a path or a label in two (and TOML
+    reads what follows a line break in a ``--set`` as further keys)."""
+    return next((c for c in text if (ord(c) < 32 or ord(c) == 127) and c not in allow), None)
+
+
+def refuse_control_characters(argv: list[str], own_check: tuple[str, ...] = ("--set",)) -> None:
+    """Refuse (:class:`UsageError`, one line naming the flag) a command-line value holding a
+    line break or other control character (tab included), so the run never writes where the
+    user did not say. Values of the flags in ``own_check`` are left to their own check (the
+    scene loader's for ``--set``, which allows a tab)."""
+    for i, arg in enumerate(argv):
+        bad = first_control_character(arg)
+        if bad is None:
+            continue
+        flag, _, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
+        if not flag and i > 0 and argv[i - 1].startswith("--"):
+            flag = argv[i - 1]
+        if flag in own_check:
+            continue
+        what = f"{flag} {value!r}" if flag else f"argument {value!r}"
+        raise UsageError(
+            f"{what} contains the control character {bad!r} (a line break?): give each path "
+            "and label on one line"
+        )
 
 
 class ArgumentParser(argparse.ArgumentParser):
