@@ -417,6 +417,10 @@ def _check_scene(scene: Scene) -> None:
             f"[long_range] pattern = 'acidic' needs n_spheres >= 3 (edge and inner discs); "
             f"[particles] n_spheres = {p.n_spheres}"
         )
+    for section in scene.extensions.values():
+        check = getattr(section, "check_scene", None)
+        if check is not None:  # an extension's checks against the rest of the scene
+            check(scene)
 
 
 def scene_from_toml(text: str) -> Scene:

@@ -293,7 +293,8 @@ class ProtocolConfig(SceneSection):
     def check_scene(self, scene) -> None:
         """The checks that need the rest of the scene ([particles], [long_range]): an
         aggregation area fraction below the gas's, a reduced pressure tolerance without
-        long-range forces. Run by :func:`protocol_settings` (so before any run starts)."""
+        long-range forces. Run with the whole-scene checks at load and by ``Scene.replace``
+        (:func:`dem_taichi.config._check_scene`), and again by :func:`protocol_settings`."""
         phi = self.aggregation_area_fraction
         phi0 = scene.particles.initial_area_fraction
         if phi is not None and phi < phi0:

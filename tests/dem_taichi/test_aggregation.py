@@ -421,12 +421,12 @@ def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
          ["pressure_tolerance_reduced", "pattern = 'neutral'"]),
     ],
 )  # fmt: skip
-def test_keys_that_do_not_fit_the_scene_are_refused_before_a_run(text, words):
-    """Checks that need [particles] or [long_range]: refused by protocol_settings, which every
-    protocol run calls first (after the --pattern override)."""
-    scene = scene_from_toml("[particles]\ninitial_area_fraction = 0.15\n" + text)
+def test_keys_that_do_not_fit_the_scene_are_refused_at_load(text, words):
+    """Checks that need [particles] or [long_range] (ProtocolConfig.check_scene): run with the
+    whole-scene checks when the scene loads (and by Scene.replace, so after a --pattern
+    override too)."""
     with pytest.raises(SceneError) as info:
-        protocol_settings(scene)
+        scene_from_toml("[particles]\ninitial_area_fraction = 0.15\n" + text)
     message = str(info.value)
     assert "\n" not in message
     for word in words:
