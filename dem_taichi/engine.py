@@ -43,6 +43,15 @@ Each axis is strain-controlled: a prescribed logarithmic strain rate ε̇ = −L
 positive, 0 = fixed), applied exactly (L = L_0 exp(−ε̇ t)). Stresses are held by the
 protocol's servo (:class:`dem_taichi.servo.StressServo`), which sets these rates from the
 measured response; the engine has no servo of its own.
+
+Relaxations
+-----------
+``CellControl.relaxation(stage)`` holds the cell and marks the call as a minimisation. With
+``[integration] relaxation = "damped"`` (the default) it runs exactly the steps of
+``CellControl.fixed(stage)``; with ``"fire"`` (serial execution only) the call runs the FIRE
+minimiser (:mod:`dem_taichi.kernels.fire`, a kernel compiled only then): a new minimisation from
+the current state at every such call, Δt between the scene's and ``fire_dt_max`` × Δt within
+the call, the scene's Δt after it; ``sim.fire_status()`` reports its last Δt, α and resets.
 """
 
 from __future__ import annotations
