@@ -49,16 +49,12 @@ scene of its latest checkpoint equals the scene given. No Taichi here.
 from __future__ import annotations
 
 import contextlib
-import datetime as _dt
 import errno
 import fnmatch
-import gc
 import hashlib
 import json
 import os
-import socket
 import stat
-import sys
 import tempfile
 import uuid
 import weakref
@@ -66,6 +62,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path, PurePosixPath
 
 from .checkpoint import latest_intact_checkpoint, list_checkpoints
+from .run_lock import (
+    RUN_LOCK,
+    DirectoryLock,
+    RunDirectoryError,
+    RunLockedError,
+    _now,
+)
+from .run_lock import note as _note
+from .run_lock import refuse_link as _refuse_link
 
 __all__ = [
     "RUN_RECORD",
@@ -86,7 +91,6 @@ __all__ = [
 ]
 
 RUN_RECORD = "run.json"
-RUN_LOCK = "run.lock"
 RUN_FORMAT = "dem_taichi.run"
 RUN_FORMAT_VERSION = 1
 #: The names a run writes in its directory. Only entries with these names are ever listed in a
@@ -109,26 +113,9 @@ RUN_FILE_PATTERNS = (
 )
 
 
-class RunDirectoryError(ValueError):
-    """A run directory that cannot be used as asked (used, other scene, nothing to resume)."""
-
-
-class RunLockedError(RunDirectoryError):
-    """The directory's lock is held by a running process (or one on another host)."""
-
-
 def scene_sha256(scene_toml: str) -> str:
     """SHA-256 (hex) of a scene's full TOML text (``dem_taichi.config.scene_to_toml``)."""
     return hashlib.sha256(scene_toml.encode("utf-8")).hexdigest()
-
-
-def _now() -> str:
-    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
-def _note(line: str) -> None:
-    """A one-line note on stderr (a stale lock taken over, a folder kept)."""
-    print(f"note: {line}", file=sys.stderr, flush=True)
 
 
 @dataclass
@@ -222,13 +209,6 @@ def _symlink_on_the_way(folder: Path, rel: str) -> Path | None:
     return None
 
 
-def _refuse_link(link: Path) -> RunDirectoryError:
-    return RunDirectoryError(
-        f"{link} is a symbolic link (to {os.readlink(link)}); a run never writes through a "
-        "link: remove the link or choose a new --out"
-    )
-
-
 def _run_entries(folder: Path) -> tuple[set[str], set[str], list[Path]]:
     """The files and folders with a run's names in ``folder`` (inside run-named folders, all
     of them), and the symbolic links among them (never followed)."""
@@ -268,154 +248,6 @@ def _check_no_links(folder: Path) -> None:
         links.insert(0, lock)
     if links:
         raise _refuse_link(links[0])
-
-
-# ---- the lock -----------------------------------------------------------------------------
-
-
-def _pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` exists on this host (a zombie counts as alive)."""
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    except OSError:
-        return False
-    return True
-
-
-def _read_lock(path: Path) -> dict | None:
-    """The content of a lock file; None when it vanished; {} when it is unreadable."""
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        return None
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
-def _describe_lock(data: dict) -> str:
-    return (
-        f"PID {data.get('pid', '?')} on host {data.get('host', '?')}, started "
-        f"{data.get('started', '?')} ({data.get('command', '?')})"
-    )
-
-
-def _write_new_lock(path: Path, data: dict) -> bool:
-    """Create the lock file with its content in one step (hard link of a temporary file);
-    False when a lock exists already."""
-    handle, temp = tempfile.mkstemp(dir=path.parent, prefix=f".{RUN_LOCK}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(json.dumps(data) + "\n")
-        try:
-            os.link(temp, path)
-        except FileExistsError:
-            return False
-        except OSError as error:  # a file system without hard links
-            if error.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP):
-                raise
-            return _write_new_lock_exclusive(path, data)
-        return True
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(temp)
-
-
-def _write_new_lock_exclusive(path: Path, data: dict) -> bool:
-    """Create the lock file with O_EXCL, then write it (where hard links are not supported:
-    a reader may then see it empty for a moment, and refuses it as unreadable)."""
-    try:
-        handle = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-    except FileExistsError:
-        return False
-    with os.fdopen(handle, "w") as stream:
-        stream.write(json.dumps(data) + "\n")
-    return True
-
-
-class RunLock:
-    """The lock of a run directory held by this process (module docstring)."""
-
-    def __init__(self, path: Path, data: dict) -> None:
-        self.path = path
-        self.data = data
-
-    @classmethod
-    def acquire(cls, folder: Path, command: str) -> RunLock:
-        """Take ``folder/run.lock``: refused (:class:`RunLockedError`) when a live process holds
-        it; a stale one (dead PID on this host) is taken over with a one-line note."""
-        path = folder / RUN_LOCK
-        if path.is_symlink():
-            raise _refuse_link(path)
-        data = {
-            "pid": os.getpid(),
-            "host": socket.gethostname(),
-            "started": _now(),
-            "command": command,
-            "token": uuid.uuid4().hex,
-        }
-        for attempt in range(5):
-            if _write_new_lock(path, data):
-                return cls(path, data)
-            held = _read_lock(path)
-            if held is None:
-                continue  # released meanwhile: try again
-            if attempt == 0 and held.get("pid") == os.getpid() and _HELD:
-                gc.collect()  # a run of this process dropped in a reference cycle: closes it
-                continue
-            _take_over_if_stale(folder, path, held)
-        raise RunLockedError(f"{path}: could not take the lock (others keep taking it); try again")
-
-    def release(self) -> None:
-        """Delete the lock file if it is still this process's own."""
-        held = _read_lock(self.path)
-        if held and held.get("token") == self.data["token"]:
-            with contextlib.suppress(FileNotFoundError):
-                self.path.unlink()
-
-
-def _take_over_if_stale(folder: Path, path: Path, held: dict) -> None:
-    """Remove a stale lock (after completing its run's manifest), or refuse a live one."""
-    here = socket.gethostname()
-    pid = held.get("pid")
-    if not held or not isinstance(pid, int):
-        raise RunLockedError(
-            f"{path} is not a readable lock; if no run is writing into {folder}, delete the lock"
-        )
-    if held.get("host") != here:
-        raise RunLockedError(
-            f"{folder} is locked by {path}, held by {_describe_lock(held)}, not this host "
-            f"({here}), so whether it still runs cannot be checked from here; if that run is "
-            "gone, delete the lock"
-        )
-    if _pid_alive(pid):
-        raise RunLockedError(
-            f"{folder} is in use: {path} is held by running {_describe_lock(held)}; wait for it "
-            f"to end, stop it (kill {pid}), or choose a new --out"
-        )
-    aside = path.with_name(f".{RUN_LOCK}.stale.{uuid.uuid4().hex[:8]}")
-    try:
-        os.rename(path, aside)
-    except FileNotFoundError:
-        return  # another process took it over first: try again
-    if _read_lock(aside) != held:  # raced: a fresh lock was put there meanwhile; put it back
-        with contextlib.suppress(OSError):
-            os.link(aside, path)
-        os.unlink(aside)
-        return
-    os.unlink(aside)
-    with contextlib.suppress(RunDirectoryError):
-        record = _read_record(folder)
-        if record is not None and record.files is not None:
-            _complete_manifest(folder, record)
-            _save_record(folder, record)
-    _note(f"took over the stale lock {path} of {_describe_lock(held)}: that process is gone")
 
 
 # ---- the manifest -------------------------------------------------------------------------
@@ -500,12 +332,28 @@ def delete_listed(directory: str | os.PathLike[str], lock: RunLock) -> bool:
     no ``run.json`` (nothing is deleted); refused (:class:`RunDirectoryError`) for a record from
     before manifests or one naming paths outside the folder."""
     folder = Path(directory)
-    if lock.path != folder / RUN_LOCK or _read_lock(lock.path) != lock.data:
+    if lock.path != folder / RUN_LOCK or not lock.is_held():
         raise RunDirectoryError(f"{folder}: delete_listed needs the folder's own lock, held")
     if _read_record(folder) is None:
         return False
     _delete_manifest(folder, _old_record_to_replace(folder))
     return True
+
+
+class RunLock(DirectoryLock):
+    """The lock of a run directory: taking over a stale one completes the dead run's manifest
+    first; a run of this process left in a reference cycle is collected before a refusal."""
+
+    @staticmethod
+    def on_stale(folder: Path) -> None:
+        record = _read_record(folder)
+        if record is not None and record.files is not None:
+            _complete_manifest(folder, record)
+            _save_record(folder, record)
+
+    @staticmethod
+    def own_runs_open() -> bool:
+        return bool(_HELD)
 
 
 # ---- the claimed directory ----------------------------------------------------------------
