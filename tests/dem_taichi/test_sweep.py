@@ -136,7 +136,7 @@ def test_scene_file_relative_to_the_sweep_file(tmp_path):
 
 def test_plan_reruns_unfinished_and_failed_members_and_refuses_changed_ones(tmp_path):
     """Without a cluster: what a re-run would do with the members' records."""
-    from dem_taichi.sweep import _plan
+    from dem_taichi.sweep_client import _plan
     from dem_taichi.sweep_member import member_dir, write_json
 
     spec = sweep_from_toml('[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = [1, 2, 3, 4]\n')

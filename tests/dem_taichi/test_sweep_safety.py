@@ -20,7 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from dem_taichi.sweep import _local_cluster, _plan, main
+from dem_taichi.sweep import main
+from dem_taichi.sweep_client import _local_cluster, _plan
 from dem_taichi.sweep_member import checked_member_dir, run_member, write_json
 from dem_taichi.sweep_spec import (
     MAX_MEMBERS,
@@ -465,7 +466,8 @@ def test_tls_options_connect_only_with_a_certificate_of_the_ca(tmp_path):
     from distributed import Client, LocalCluster
     from distributed.security import Security
 
-    from dem_taichi.sweep import _cluster, _security
+    from dem_taichi.sweep import _security
+    from dem_taichi.sweep_client import _cluster
 
     make_certificates(tmp_path)
     files = {name: str(tmp_path / name) for name in (
