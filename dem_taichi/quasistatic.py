@@ -52,11 +52,13 @@ def relax(
     """Run at fixed cell until UFR < ``unbalanced_force`` and KE/N < ``kinetic_energy_per_rod``.
 
     Checks every ``check_steps`` steps, stops after ``max_steps``; ``give_up(measures, steps)``
-    may end it early (returns not relaxed). Returns (measures, relaxed, steps run).
+    may end it early (returns not relaxed). Returns (measures, relaxed, steps run). Each chunk
+    is a minimising call (``CellControl.relaxation``): the scene's ``[integration] relaxation``
+    integrates it with the damped dynamics (the default) or with FIRE.
     """
     steps = 0
     measures = cast(Measures, {})  # returned as is only when max_steps <= 0
-    control = _control(stage, 0.0, 0.0)
+    control = CellControl.relaxation(stage)  # a minimisation: FIRE on "fire" scenes
     while steps < max_steps:
         n = min(check_steps, max_steps - steps)
         measures = sim.run(n, control, output_every=n)
