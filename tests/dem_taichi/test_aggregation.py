@@ -102,16 +102,16 @@ def test_rescale_speed_sets_the_rms_velocity_component():
 def test_speed_is_rescaled_at_the_start_and_after_every_check(monkeypatch):
     """With aggregation_speed the rescale runs at the start of the ageing and after every
     check but the last: the gas keeps the rms speed asked."""
-    import dem_taichi.paths as paths
+    import dem_taichi.aggregation as stage_module  # where the stage calls hold, rescale_speed
 
     calls: list[float] = []
-    original = paths.rescale_speed
+    original = stage_module.rescale_speed
 
     def counting(sim, speed):
         calls.append(speed)
         return original(sim, speed)
 
-    monkeypatch.setattr(paths, "rescale_speed", counting)
+    monkeypatch.setattr(stage_module, "rescale_speed", counting)
     scene = attractive_scene(aggregation="time", aggregation_time=3.0, aggregation_speed=0.25)
     runner, details, records = run_stage(scene)
     checks = -(-details["aging_steps"] // protocol_settings(scene).relax_check_steps)
@@ -304,10 +304,10 @@ def test_protocol_records_the_aggregation_stage(full_run):
 def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run, tmp_path):
     """Stopped (as Ctrl-C would) at the third check of the ageing: nothing is saved, the
     resume starts again from the gas and ends with the uninterrupted run's outputs."""
-    import dem_taichi.paths as paths
+    import dem_taichi.aggregation as stage_module  # where the stage calls hold, rescale_speed
     from dem_taichi.protocol import run_protocol
 
-    original = paths.hold
+    original = stage_module.hold
     calls = []
 
     def stop_at_third_check(*args, **kwargs):
@@ -316,12 +316,12 @@ def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run,
             raise KeyboardInterrupt
         return original(*args, **kwargs)
 
-    paths.hold = stop_at_third_check
+    stage_module.hold = stop_at_third_check
     try:
         with pytest.raises(KeyboardInterrupt):
             run_protocol(protocol_scene(), tmp_path)
     finally:
-        paths.hold = original
+        stage_module.hold = original
     _release_runs()
     assert not (tmp_path / "resume" / "A.npz").exists()
     resumed = run_protocol(protocol_scene(), tmp_path, resume=True)

@@ -1,0 +1,135 @@
+"""The aggregation (gas-ageing) stage of the protocol, before the compression to A (issue 19).
+
+A stage of :class:`dem_taichi.paths.ProtocolRunner` (``runner.aggregate()`` calls
+:func:`aggregate`), kept apart because it is optional and long. Keys: ``[protocol]
+aggregation*`` (:class:`dem_taichi.protocol_config.ProtocolConfig`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from dem_taichi.protocol_records import ProtocolError
+from dem_taichi.quasistatic import apply_strain, hold, rescale_speed
+
+__all__ = ["aggregate"]
+
+
+def aggregate(runner) -> dict:
+    """The aggregation (gas-ageing) stage before the compression to A; returns (and keeps
+    as ``aggregation_details``, written with the transition in the results) what it did.
+
+    1. Isotropic strain-controlled compression of the gas from its area fraction φ_0 to
+       ``aggregation_area_fraction`` (per-axis log strain ½ ln(φ/φ_0), at
+       ``gas_strain_rate``; none when unset or equal).
+    2. Ageing at fixed cell, checked every ``relax_check_steps`` steps: for
+       ``aggregation_time`` ("time"), or until the coordination number Z
+       (``coordination_number``, contacts per rod) reaches ``aggregation_coordination``
+       ("coordination"), at most ``aggregation_max_time`` — then a one-line note, not an
+       error. With ``aggregation_speed`` the bodies' rms velocity component is rescaled to
+       it at the start and after every check.
+
+    History records at the scene's ``[output] every`` (and the end of the stage), stage
+    label "aggregation". Deterministic: the same scene gives the same state bit for bit.
+    """
+    c = runner.config
+    sim = runner.sim
+    stage = "aggregation"
+    if not c.aggregates:
+        raise ProtocolError("[protocol] aggregation = 'none': there is no aggregation stage")
+    t0 = time.perf_counter()
+    record = runner._record(stage)
+    every = sim.scene.output.every
+    progress = runner._begin_stage(stage, None)
+    start = sim.measure()
+    phi_start = 1.0 / start["specific_volume"]
+    details: dict = {
+        "criterion": c.aggregation,
+        "area_fraction_start": phi_start,
+        "coordination_number_start": start["coordination_number"],
+        "step_start": start["step"],
+    }
+    # 1. compression of the gas to the ageing area fraction
+    phi_target = c.aggregation_area_fraction
+    if phi_target is not None and phi_target > phi_start:
+        h = 0.5 * math.log(phi_target / phi_start)
+        before = sim.step
+        measures = apply_strain(
+            sim, (h, h), stage, c.gas_strain_rate, c.load_steps_min, runner.history, every
+        )
+        record.steps += sim.step - before
+        measures = measures.copy()
+        measures["inertial_number"] = float("nan")  # a gas: I is undefined
+        record.note(measures, False, c.unbalanced_force_max)
+        progress.step(
+            0,
+            f"[{stage}] compressed to phi={1.0 / measures['specific_volume']:.4f} "
+            f"in {sim.step - before} steps p={measures['mean_stress']:.4g} "
+            f"Z={measures['coordination_number']:.3f}",
+        )
+    else:
+        measures = start
+    details["area_fraction"] = 1.0 / measures["specific_volume"]
+    details["coordination_number_compressed"] = measures["coordination_number"]
+    # 2. ageing at fixed cell
+    dt = sim.time_step
+    limit = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
+    assert limit is not None  # ProtocolConfig.check
+    total = max(int(math.ceil(limit / dt - 1e-9)), 1)
+    target_z = c.aggregation_coordination if c.aggregation == "coordination" else None
+    speed = c.aggregation_speed
+    if speed is not None:
+        rescale_speed(sim, speed)
+    runner._since_output = 0
+    done, check = 0, 0
+    z = measures["coordination_number"]
+    reached = target_z is not None and z >= target_z  # by the compression already
+    while not reached and done < total:
+        n = min(c.relax_check_steps, total - done)
+        measures = hold(sim, stage, n)
+        done += n
+        check += 1
+        record.steps += n
+        runner._output(measures, n)
+        z = measures["coordination_number"]
+        reached = target_z is not None and z >= target_z
+        if runner._since_output == 0 or reached or done >= total:  # a line per record
+            progress.step(
+                check,
+                f"[{stage}] t={done * dt:.4g}/{limit:g} Z={z:.3f} "
+                f"Zm={measures['mechanical_coordination_number']:.3f} "
+                f"KE/N={measures['kinetic_energy'] / sim.n_rods:.3g} "
+                f"p={measures['mean_stress']:.4g}",
+            )
+        if speed is not None and not reached and done < total:
+            rescale_speed(sim, speed)
+    met = reached or target_z is None
+    if runner.history is not None and runner._since_output > 0:
+        runner.history.append(measures)  # the end of the stage
+    runner._since_output = 0
+    details.update(
+        criterion_met=bool(met),
+        aging_time=done * dt,
+        aging_steps=done,
+        coordination_number=z,
+        mechanical_coordination_number=measures["mechanical_coordination_number"],
+        mean_stress=measures["mean_stress"],
+        step=measures["step"],
+    )
+    if not met:
+        note = (
+            f"[{stage}] note: Z = {z:.3f} has not reached aggregation_coordination = "
+            f"{target_z:g} within aggregation_max_time = {limit:g}: the ageing stops at the "
+            "cap and the compression to A follows"
+        )
+        details["note"] = note
+        runner._say(note)
+    record.seconds += time.perf_counter() - t0
+    runner._end_stage()
+    runner._say(
+        f"[aggregated] phi={details['area_fraction']:.4f} Z "
+        f"{details['coordination_number_start']:.3f} -> {z:.3f} after t={done * dt:.4g}"
+    )
+    runner.aggregation_details = details
+    return details
