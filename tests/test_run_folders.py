@@ -30,11 +30,11 @@ from dem_taichi.io.run_directory import (
     RunLockedError,
     start_run,
 )
+from tests.sentinels import one_line, sentinel, survived
 from tiv_model.command_line import EXIT_DISK_FULL, EXIT_USAGE, run_command
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = scene_to_toml(load_scene("smoke"))
-SENTINEL = "SENTINEL: must survive"
 
 
 def dem(*args: str) -> int:
@@ -47,23 +47,6 @@ def dem(*args: str) -> int:
 def smoke_run(out: Path, *extra: str, steps: str = "500") -> int:
     return dem("run", "smoke", "--out", str(out), "--steps", steps, "--no-progress", "--quiet",
                *extra)  # fmt: skip
-
-
-def sentinel(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(SENTINEL)
-    return path
-
-
-def survived(*paths: Path) -> bool:
-    return all(p.read_text() == SENTINEL for p in paths)
-
-
-def one_line(err: str) -> str:
-    """The one error line (fails when there are more lines or a traceback)."""
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def manifest(out: Path) -> dict:

@@ -13,30 +13,14 @@ from pathlib import Path
 
 from bridge.outputs import MANIFEST
 from bridge.pipeline import calibrate_from_results, main, synthetic_inputs
+from tests.sentinels import one_line, sentinel, survived
 
 QUICK = ("--stages", "compressibility", "--no-figures", "--no-identifiability", "--passes", "1",
          "--quiet")  # fmt: skip
-SENTINEL = "SENTINEL: must survive"
 
 
 def calibrate(out: Path, *extra: str) -> int:
     return main(["--synthetic", "--out", str(out), *QUICK, *extra])
-
-
-def sentinel(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(SENTINEL)
-    return path
-
-
-def survived(*paths: Path) -> bool:
-    return all(p.read_text() == SENTINEL for p in paths)
-
-
-def one_line(err: str) -> str:
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def listed(out: Path) -> list[str]:
