@@ -9,14 +9,14 @@ OUT    ?= results
 # test processes for `make test` (pytest-xdist; one per core by default, 0 to run in-process)
 TEST_WORKERS ?= auto
 
-.PHONY: demo test test-slow test-all bench lint cf-check clean
+.PHONY: demo test test-slow test-all bench lint docs cf-check clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dem,test]'
+	$(PY) -m pip install --quiet -e '.[dem,test,docs]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -36,6 +36,11 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(PY) -m ruff check .
+	$(PY) -m mypy
+
+# the documentation site, warnings as errors, into site/ (tests/test_docs.py builds it too)
+docs: $(STAMP)
+	$(PY) -m mkdocs build --strict
 
 # CF-1.11 check of the netCDF files we write: installs the optional extra 'cf' (the IOOS
 # compliance-checker, offline: it ships the standard-name table, cf-units bundles UDUNITS-2, so
