@@ -1,4 +1,5 @@
-"""Frozen-network experiment matrix on the stiffness anisotropy (issue 8, model.md §1.7).
+"""Frozen-network experiment matrix on the stiffness anisotropy (issue 8,
+docs/science/dem-model.md §1.7).
 
 For every stored relaxed state of a protocol run (``state_*.npz`` and, with
 ``[protocol] save_path_states = true``, every ``path_*.npz`` increment), the zero-amplitude

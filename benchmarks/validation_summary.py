@@ -10,8 +10,8 @@ the row); when it also holds
 are listed. Prints a markdown table per finding and writes it to ``--out``
 (default ``benchmarks/results/protocol_validation_summary.md``).
 
-Findings (model.md §1, the study): fabric isotropic along A→B within the sampling noise
-sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
+Findings (docs/science/dem-model.md §1, the study): fabric isotropic along A→B within the sampling
+noise sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
 E_oed,h/E_oed,v > 1, growing; ln v linear in ln p beyond A; acidic looser than basic.
 Moduli are the linear-response ones (the dynamic sweep runs only at some states on `paper`).
 """

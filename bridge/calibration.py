@@ -1,4 +1,4 @@
-"""Staged least-squares calibration of the TIV model on DEM series (model.md §3).
+"""Staged least-squares calibration of the TIV model on DEM series (docs/science/tiv-model.md §3).
 
 Stages (each :func:`scipy.optimize.least_squares`, trust-region reflective, with bounds):
 

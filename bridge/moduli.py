@@ -1,8 +1,8 @@
 """The TIV model's elastic moduli at measured states (batched), for calibration and prediction.
 
 At a measured state (σ_a, σ_r, v, β) the model's elastic strain ε^e = diag(e_a, e_r, e_r)
-solves σ(ε^e; v, β) = (σ_a, σ_r, σ_r) (model.md §2.1); it is found for all states at once by
-a batched Newton iteration on (e_a, e_r) with the closed-form stiffness D = ∂σ/∂ε^e of
+solves σ(ε^e; v, β) = (σ_a, σ_r, σ_r) (docs/science/tiv-model.md §2.1); it is found for all states
+at once by a batched Newton iteration on (e_a, e_r) with the closed-form stiffness D = ∂σ/∂ε^e of
 :func:`tiv_model.energy.stiffness`, with backtracking, started from the isotropic closed form
 ε^e_v = (p/(F p_r))^(1−n)/(k(1−n)). The moduli are then the components of D (kPa):
 E_oed,v = D_aaaa, E_oed,h = D_rrrr, cross term D_ra (= D_ar).

@@ -434,7 +434,7 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default="A",
         choices=("A", "B"),
         help="form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
-        "model.md §2; default A)",
+        "docs/science/tiv-model.md §2; default A)",
     )
     parser.add_argument(
         "--no-constraint-forces",

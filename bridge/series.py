@@ -1,9 +1,9 @@
 """DEM results → series of the TIV model, with stated and switchable 2D → 3D conventions.
 
 The DEM is 2D (x horizontal, y vertical, stresses in DEM units, force/length); the TIV model is
-written for 3D tensors in kPa (model.md §3). This module is the only place that maps one onto
-the other, both ways (the inverse builds DEM-schema datasets from model runs, used by the tests
-and by synthetic studies).
+written for 3D tensors in kPa (docs/science/tiv-model.md §3). This module is the only place that
+maps one onto the other, both ways (the inverse builds DEM-schema datasets from model runs, used by
+the tests and by synthetic studies).
 
 Conventions (:class:`Convention`)
 ---------------------------------

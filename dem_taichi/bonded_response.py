@@ -1,11 +1,11 @@
 """Linear response of a network of *bonded* rods as the engine holds it (numpy, no Taichi).
 
 The zero-amplitude stiffness dσ/dε of a state of the bonded-rod model (``[particles] rod_model =
-"bonded"``, model.md §1.7): every disc a body (x, y, θ), inter-rod (and non-bonded intra-rod)
-pairs as in :mod:`dem_taichi.linear_response` with disc-centred levers, and every intact bond
-with its Hessian at the *current* deformation and its current forces as pre-forces
-(Λ = k e, the geometric terms of :func:`dem_taichi.flexible_response.bond_jacobians`). So the
-response is exact for the bonded state, checked against the engine's dynamic probes.
+"bonded"``, docs/science/dem-model.md §1.7): every disc a body (x, y, θ), inter-rod (and non-bonded
+intra-rod) pairs as in :mod:`dem_taichi.linear_response` with disc-centred levers, and every intact
+bond with its Hessian at the *current* deformation and its current forces as pre-forces (Λ = k e,
+the geometric terms of :func:`dem_taichi.flexible_response.bond_jacobians`). So the response is
+exact for the bonded state, checked against the engine's dynamic probes.
 
 Pruning works on *fragments* (the pieces of a rod held together by intact bonds: a whole rod
 unless a bond broke): a fragment with at most one active pair to other fragments is a rattler,

@@ -1,4 +1,5 @@
-"""The intra-rod bond law of the bonded-rod model in numpy (model.md §1.7; no Taichi).
+"""The intra-rod bond law of the bonded-rod model in numpy (docs/science/dem-model.md §1.7; no
+Taichi).
 
 The independent reference of :mod:`dem_taichi.kernels.bonds` (same symbols, see there): bond
 g—h = g + 1 between neighbouring discs of a rod, d = x_h − x_g (minimum image), θ_m the mean
@@ -188,7 +189,8 @@ def unwrapped_chains(position: np.ndarray, chain: int, cell_lengths: np.ndarray)
 
 def rod_axes(position: np.ndarray, chain: int, cell_lengths: np.ndarray):
     """Centroids (N, 2), wrapped into [0, L), and end-to-end angles (N,) in (−π, π] of bonded
-    rods: the rod fabric of a bonded rod is that of its end-to-end vector (model.md §1.7)."""
+    rods: the rod fabric of a bonded rod is that of its end-to-end vector
+    (docs/science/dem-model.md §1.7)."""
     lengths = np.asarray(cell_lengths, dtype=float)
     discs = unwrapped_chains(position, chain, lengths)
     centroid = discs.mean(axis=1)

@@ -5,8 +5,8 @@ numpy/scipy/xarray only (no Taichi): reads ``summary.json``, ``relaxed_states.nc
 ``benchmarks/validation_summary.py`` (runs side by side) and by the sweeps
 (:mod:`dem_taichi.sweep_results`: mean ± 95 % interval over replicas).
 
-Findings (model.md §1, the study): fabric isotropic along A→B within the sampling noise
-sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
+Findings (docs/science/dem-model.md §1, the study): fabric isotropic along A→B within the sampling
+noise sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
 E_oed,h/E_oed,v > 1, growing; ln v linear in ln p beyond A (slope −λ*); K0 = σ_xx/σ_yy at C;
 the moduli ∝ p^n along A→B (the study: n ≈ 0.8) and E_v/p at B (≈ 125). Moduli are the
 linear-response ones. A run without some path or without probes gives NaN for what it lacks.

@@ -1,6 +1,6 @@
 """Linear response of a network of *flexible* (bonded) rods on disc degrees of freedom (numpy).
 
-The frozen-network version of the bonded-rod model of ``shared/design/model.md`` §1.7: every disc
+The frozen-network version of the bonded-rod model of docs/science/dem-model.md §1.7: every disc
 is a body (x, y, θ); neighbouring discs of a rod are joined by a bond in its reference state (the
 stored rigid rod, straight); inter-rod contacts and long-range pairs act between discs exactly as
 in :mod:`dem_taichi.linear_response` (disc-centred levers). The result is the zero-amplitude
@@ -66,7 +66,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class BondStiffness:
-    """Springs of the intra-rod bonds (model.md §1.7), DEM units.
+    """Springs of the intra-rod bonds (docs/science/dem-model.md §1.7), DEM units.
 
     Attributes:
         normal: k_bn [force/length], stretch of the centre distance.

@@ -2,7 +2,7 @@
 
 This module is the independent reference against which the Taichi kernels are tested, and the
 force evaluator of :mod:`dem_taichi.linear_response`. Every formula is from
-``shared/design/model.md`` §1.2/§1.4 and ``notes/dem_interfaces.md`` (cited below as [M] and [I]).
+docs/science/dem-model.md §1.2/§1.4 (cited below as [M]) and §1.8 (cited below as [I]).
 
 Symbols (dimensionless DEM units: disc diameter d = 1, disc mass m = 1)
     x_i         disc centre; X_P, θ_P rod centroid and angle; a_P = (cos θ_P, sin θ_P)

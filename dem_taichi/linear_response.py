@@ -1,6 +1,6 @@
 """Linear-response (zero-amplitude) elastic stiffness of a rod network (numpy/scipy, no Taichi).
 
-Defines :func:`linear_response`, the linear-response probe of ``shared/design/model.md`` §1.6:
+Defines :func:`linear_response`, the linear-response probe of docs/science/dem-model.md §1.6:
 the exact derivative dσ/dε of the engine's stress definition after relaxation to
 force-and-torque equilibrium, i.e. the zero-amplitude limit of the dynamic strain probe, on a
 :class:`NetworkSnapshot` (the numpy picture of a static network that the engine exports,

@@ -6,11 +6,11 @@ numpy only (no Taichi, no file input): :func:`dem_taichi.findings.run_findings` 
 folder and calls these functions.
 
 The DEM has one dimensional choice: which DEM stress stands for 100 kPa. The study (the
-continuum model's Table 1, model.md §1) has E_v/p ≈ 125 at p = 100 kPa, λ* = 0.25 (slope of
-ln v against ln p), moduli ∝ p^0.8 (n + r = 0.8), N = 1.30 (v at 100 kPa) and, from Table 1,
-a densification sensitivity ln(E_B′/E_B)/ln(v_B′/v_B) ≈ −r/λ* ≈ −2.5. E_v/p is dimensionless,
-so the DEM stress p* at which the DEM's E_v/p equals 125 is the DEM's 100 kPa: the measured
-stress scale is 100/p* kPa per DEM stress unit (force/length in 2D).
+continuum model's Table 1, docs/science/tiv-model.md §2) has E_v/p ≈ 125 at p = 100 kPa,
+λ* = 0.25 (slope of ln v against ln p), moduli ∝ p^0.8 (n + r = 0.8), N = 1.30 (v at 100 kPa)
+and, from Table 1, a densification sensitivity ln(E_B′/E_B)/ln(v_B′/v_B) ≈ −r/λ* ≈ −2.5. E_v/p is
+dimensionless, so the DEM stress p* at which the DEM's E_v/p equals 125 is the DEM's 100 kPa: the
+measured stress scale is 100/p* kPa per DEM stress unit (force/length in 2D).
 
 Symbols: p mean stress (σ_xx + σ_yy)/2; v specific volume; E_v = E_oed,v = ∂σ_yy/∂ε_yy and
 E_h = E_oed,h = ∂σ_xx/∂ε_xx constrained moduli (linear response, same units as p); N_rods rods

@@ -1,4 +1,5 @@
-"""The loading paths of the study on the DEM engine (model.md §1.6): :class:`ProtocolRunner`.
+"""The loading paths of the study on the DEM engine (docs/science/dem-model.md §1.6):
+:class:`ProtocolRunner`.
 
 Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
 

@@ -1,4 +1,4 @@
-"""Elastic probes at relaxed states of the loading paths (model.md §1.6, step 4).
+"""Elastic probes at relaxed states of the loading paths (docs/science/dem-model.md §1.6, step 4).
 
 Two methods, reported side by side:
 

@@ -1,4 +1,5 @@
-"""Virtual experiments of the study on the DEM engine (model.md §1.6): the loading paths.
+"""Virtual experiments of the study on the DEM engine (docs/science/dem-model.md §1.6): the loading
+paths.
 
 Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
 

@@ -1,4 +1,5 @@
-"""Quasi-static building blocks on a :class:`dem_taichi.engine.Simulation` (model.md §1.6).
+"""Quasi-static building blocks on a :class:`dem_taichi.engine.Simulation`
+(docs/science/dem-model.md §1.6).
 
 The loading paths (:mod:`dem_taichi.protocol`) and the probes (:mod:`dem_taichi.probing`) are
 built from these three: the strain-rate cap of the inertial number, a relaxation at fixed cell

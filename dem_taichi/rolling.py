@@ -1,12 +1,12 @@
 """Rolling resistance at inter-rod contacts: the law, in numpy (the kernels' reference).
 
-MercuryDPM's rolling spring (``FrictionInteraction::computeFrictionForce``; model.md §1.7) in
-2D. At a contact of bodies P (disc i) and Q (disc j) the rolling spring ψ [rad] accumulates the
-relative rotation, dψ/dt = ω_P − ω_Q (in 2D the spring is a scalar; MercuryDPM's objectivity
-correction, a rotation of its spring vector, leaves a scalar unchanged). With the effective
-diameter d_eff = 2 R_eff (= r = d/2 for equal discs) MercuryDPM's rolling force
-F_r = −k_r d_eff ψ − γ_r d_eff ω_rel, capped at |F_r| ≤ μ_r |f_c|, acts at the lever d_eff, so
-the moment on P is
+MercuryDPM's rolling spring (``FrictionInteraction::computeFrictionForce``;
+docs/science/dem-model.md §1.7) in 2D. At a contact of bodies P (disc i) and Q (disc j) the
+rolling spring ψ [rad] accumulates the relative rotation, dψ/dt = ω_P − ω_Q (in 2D the spring is a
+scalar; MercuryDPM's objectivity correction, a rotation of its spring vector, leaves a scalar
+unchanged). With the effective diameter d_eff = 2 R_eff (= r = d/2 for equal discs) MercuryDPM's
+rolling force F_r = −k_r d_eff ψ − γ_r d_eff ω_rel, capped at |F_r| ≤ μ_r |f_c|, acts at the lever
+d_eff, so the moment on P is
 
     M = −κ_r ψ − η_r (ω_P − ω_Q),   κ_r = k_r d_eff²,  η_r = γ_r d_eff²,
     |M| ≤ μ_r d_eff |f_c|  (on slip ψ is reset to −(M + η_r ω_rel)/κ_r, the capped value),

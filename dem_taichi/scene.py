@@ -2,9 +2,9 @@
 
 Symbols: N rods of n_s discs of diameter d and centre spacing s_p; disc mass m. Disc s of a rod sits
 at body-frame offset o_s = (s − (n_s − 1)/2) s_p along the axis a = (cos θ, sin θ)
-(docs: notes/dem_interfaces.md). Rod mass M = n_s m; moment of inertia
-I = Σ_s m o_s² + n_s m d²/8 (model.md §1.1). Solid area of a rod: n_s π d²/4 minus the lens overlaps
-of neighbouring discs when s_p < d.
+(docs/science/dem-model.md §1.8). Rod mass M = n_s m; moment of inertia
+I = Σ_s m o_s² + n_s m d²/8 (docs/science/dem-model.md §1.1). Solid area of a rod: n_s π d²/4 minus
+the lens overlaps of neighbouring discs when s_p < d.
 """
 
 from __future__ import annotations
@@ -74,7 +74,8 @@ def rod_geometry(scene: Scene) -> RodGeometry:
 
 def body_geometry(scene: Scene) -> RodGeometry:
     """The geometry of the engine's bodies: the rod itself for rigid rods; one disc (mass m,
-    inertia m d²/8, no offset) for bonded rods, where every disc is a body (model.md §1.7)."""
+    inertia m d²/8, no offset) for bonded rods, where every disc is a body
+    (docs/science/dem-model.md §1.7)."""
     if not scene.bonded:
         return rod_geometry(scene)
     p = scene.particles
@@ -114,7 +115,7 @@ def bodies_from_rods(gas: GasState, geometry: RodGeometry) -> GasState:
 
 
 def species_parameters(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-disc-position charge c_s ∈ {−1, 0, 1}, F_max and k_a (notes/dem_interfaces.md).
+    """Per-disc-position charge c_s ∈ {−1, 0, 1}, F_max and k_a (docs/science/dem-model.md §1.8).
 
     acidic: edge +1, inner −1; basic: all −1; neutral: all 0 (also when long range is disabled).
     """

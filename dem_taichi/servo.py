@@ -1,4 +1,5 @@
-"""The protocol's stress servo: stress targets held at relaxed states (model.md §1.6).
+"""The protocol's stress servo: stress targets held at relaxed states
+(docs/science/dem-model.md §1.6).
 
 Between relaxed states the cell is strain-controlled: a strain correction on the servoed axes is
 applied at a rate capped by the inertial number, ε̇ ≤ I_max sqrt(p/ρ)/d (p the current mean

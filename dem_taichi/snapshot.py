@@ -30,7 +30,8 @@ def _as_array(name: str, value, dtype, shape: tuple) -> np.ndarray:
 
 @dataclass(frozen=True)
 class BondNetwork:
-    """The intra-rod bonds of a snapshot of bonded rods (model.md §1.7, :mod:`dem_taichi.bonds`).
+    """The intra-rod bonds of a snapshot of bonded rods (docs/science/dem-model.md §1.7,
+    :mod:`dem_taichi.bonds`).
 
     The snapshot's bodies are then discs (``n_spheres`` = 1, rod-major: disc s of rod r is body
     r·chain + s), their centroids contiguous along each rod (bond vector x_h − x_g, no shift).
@@ -71,7 +72,7 @@ class BondNetwork:
 class NetworkSnapshot:
     """A static configuration of rigid rods of discs in a periodic rectangular cell, with its pairs.
 
-    Conventions (``notes/dem_interfaces.md``): disc ``s`` of rod ``r`` has global index
+    Conventions (docs/science/dem-model.md §1.8): disc ``s`` of rod ``r`` has global index
     ``g = r * n_spheres + s`` and sits at ``X_r + o_s a_r`` with ``o_s = (s - (n_s-1)/2) spacing``
     and ``a_r = (cos θ_r, sin θ_r)``. Pair ``p`` joins discs ``pair_i[p]`` and ``pair_j[p]`` of two
     different rods, with ``r_ij = x_i - x_j - pair_shift[p]`` the minimum image. Every inter-rod

@@ -116,9 +116,9 @@ class StiffnessVariant:
         rolling_stiffness: κ_r [force·length/rad] of a rolling spring at every contact on the
             relative rotation of the two bodies (torque -κ_r (φ_P - φ_Q) on P, +κ_r (φ_P - φ_Q)
             on Q; MercuryDPM's rolling spring k_r gives κ_r = k_r d_eff², with d_eff = r = d/2
-            for equal spheres as in model.md §1.7). It carries no force, hence no stress term;
-            always stuck (no rolling cap μ_r |f_n|). Added to the engine's own rolling springs
-            (the snapshot's, :func:`rolling_terms`), which it leaves as they are.
+            for equal spheres as in docs/science/dem-model.md §1.7). It carries no force, hence no
+            stress term; always stuck (no rolling cap μ_r |f_n|). Added to the engine's own rolling
+            springs (the snapshot's, :func:`rolling_terms`), which it leaves as they are.
     """
 
     tangential_stiffness: float | None = None

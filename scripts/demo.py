@@ -166,7 +166,8 @@ def run_tiv_demo(out_dir: Path, smoke: bool) -> dict:
         f"- K0 to σ_v = {K0_SIGMA_V_MAX:g} kPa then constant-p unloading to q = 0: "
         f"termination: {k0u.attrs['termination']}",
         "",
-        "Sanity values (model.md §2.4 expects, form A with constraint forces: K0 ≈ 0.65–0.70, "
+        "Sanity values (docs/science/tiv-model.md §2.4 expects, form A with constraint forces: "
+        "K0 ≈ 0.65–0.70, "
         "β ≈ 0.13 at σ_v = 100 kPa, E_h/E_v above 2 by 100 kPa, elastic constant-p unloading):",
         "",
         "| variant | K0 at 100 kPa | β at 100 kPa | E_h/E_v at 100 kPa | E_h/E_v end of K0 "

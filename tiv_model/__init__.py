@@ -2,7 +2,7 @@
 
 Usable on its own: this package imports neither Taichi nor ``dem_taichi`` nor ``bridge``.
 
-Model (see ``../shared/design/model.md`` §2): free energy φ = F(v) Ψ(ε̃) with a fabric-mapped
+Model (see docs/science/tiv-model.md §2): free energy φ = F(v) Ψ(ε̃) with a fabric-mapped
 strain ε̃ (anisotropy form "A" or "B"), rotated-ellipse yield surface from the dissipation
 function (with or without constraint forces), isotropic hardening of p_c through the specific
 volume v, fabric β evolving towards a bounding fabric β_b (swappable law).

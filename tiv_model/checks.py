@@ -88,7 +88,8 @@ def mechanical_dissipation(
     """(σ:Δε^p − (v φ_v) Δln v − φ_β:Δβ, d(Δε^p)) for one increment, both at the end state (kPa).
 
     Δε^p = Δε − Δε^e. With the constraint forces the two are equal (the thermodynamic
-    identity of model.md §2.2) and non-negative; without them only d is guaranteed ≥ 0.
+    identity of docs/science/tiv-model.md §2.2) and non-negative; without them only d is
+    guaranteed ≥ 0.
     """
     dep = (new.strain - old.strain) - (new.elastic_strain - old.elastic_strain)
     ev = EnergyEvaluation(new.elastic_strain, new.specific_volume, new.fabric, params, options)

@@ -1,4 +1,5 @@
-"""Dissipation, yield surface, flow rule, hardening and bounding fabric (model.md §2.2–2.3).
+"""Dissipation, yield surface, flow rule, hardening and bounding fabric
+(docs/science/tiv-model.md §2.2–2.3).
 
 d = (p_c/2)[D̄ + ε̇^p_v + β:ε̇^p] + I_K(v̇/v + ε̇^p_v) + I_L(β̇ − c(β_b − β)D̄)
 D̄ = sqrt((ε̇^p_v + β:ε̇^p)² + (2/3)(M² − β_s²) ė^p:ė^p),   p_c = p_r (v/N)^(−1/λ*)

@@ -86,7 +86,7 @@ def elastic_probe(
 ) -> ElasticModuli:
     """Elastic moduli of the free energy at ``state`` (the state is not changed).
 
-    E_oed,v = D_aaaa, E_oed,h = D_rrrr (constrained moduli, model.md §2.1);
+    E_oed,v = D_aaaa, E_oed,h = D_rrrr (constrained moduli, docs/science/tiv-model.md §2.1);
     bulk = I:D:I / 9 (isotropic strain probe); shear = Δq / (3 Δε_s) for the isochoric strain
     probe Δε = Δε_s diag(1, −1/2, −1/2). On the isotropic axis these are K and G exactly.
     """

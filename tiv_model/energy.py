@@ -1,4 +1,4 @@
-"""Free energy, stress and closed-form elastic stiffness (model.md §2.1).
+"""Free energy, stress and closed-form elastic stiffness (docs/science/tiv-model.md §2.1).
 
 φ(ε^e, v, β) = F(v) Ψ(ε̃),   F(v) = (v/N)^X,   X = r / ((n − 1) λ*)
 Ψ(ε̃) = p_r / (k(2 − n)) · [k(1 − n)]^a · Q̃^a,   a = (2 − n) / (2(1 − n))
@@ -280,7 +280,8 @@ def _fabric_derivative(ev: EnergyEvaluation, eps_m, beta_m, params, options) -> 
 
 
 def constraint_pressure(energy, params: Parameters):
-    """Λ_K = −v ∂φ/∂v = −X φ (kPa): the constraint force of the volume law (model.md §2.2)."""
+    """Λ_K = −v ∂φ/∂v = −X φ (kPa): the constraint force of the volume law
+    (docs/science/tiv-model.md §2.2)."""
     return -params.energy_exponent * np.asarray(energy)
 
 

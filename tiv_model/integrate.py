@@ -1,4 +1,4 @@
-"""Implicit (backward-Euler) integration of the TIV model (model.md §2.4).
+"""Implicit (backward-Euler) integration of the TIV model (docs/science/tiv-model.md §2.4).
 
 One increment, strain-controlled:
 1. elastic trial ε^e_tr = ε^e_n + Δε with v and β frozen; accepted if y(ε^e_tr) ≤ 0 (exactly

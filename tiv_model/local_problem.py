@@ -1,6 +1,7 @@
 """Residuals of the general (Mandel) backward-Euler increment and their exact Jacobian, batched.
 
-Unknowns x = (ε^e, μ, β, ln v) (14 per point: 6, 1, 6, 1), residuals (model.md §2.4)
+Unknowns x = (ε^e, μ, β, ln v) (14 per point: 6, 1, 6, 1), residuals
+(docs/science/tiv-model.md §2.4)
   R_ε = ε^e − ε^e_tr + μ n/p_c,  R_y = y/p_c²,  R_β = β(1 + cΔD̄) − β_n − cΔD̄ β_b,
   R_v = ln v − ln v_n + tr Δε^p,
 all evaluated at the end of the increment for a batch of points ``(B, 14)``.

@@ -246,8 +246,8 @@ def exponential_bound(stress_ratio, params: Parameters) -> np.ndarray:
     """Default bound law, f(η) = (M/z)(1 − exp(−s η/M)) / η, vectorised over η ≥ 0.
 
     The bounding fabric tensor is β_b = f(η) s/p, i.e. β_b = (M/z)[1 − exp(−s η/M)] r̂
-    (model.md §2.3). Guarded at η → 0 by the series (M/z) a (1 − x/2 + x²/6 − x³/24),
-    a = s/M, x = a η, so that β_b is smooth at isotropic states.
+    (docs/science/tiv-model.md §2.3). Guarded at η → 0 by the series (M/z) a (1 − x/2 + x²/6 −
+    x³/24), a = s/M, x = a η, so that β_b is smooth at isotropic states.
     """
     eta = np.asarray(stress_ratio, dtype=float)
     a = params.s / params.M
@@ -280,7 +280,8 @@ BOUND_LAWS: dict[str, BoundLaw] = {
 
 @dataclass(frozen=True)
 class ModelOptions:
-    """The uncertain parts of the model (model.md §2), with the documented defaults.
+    """The uncertain parts of the model (docs/science/tiv-model.md §2), with the documented
+    defaults.
 
     anisotropy:        "A" (default) ε̃ = ε^e − ω β_s sym(β·ε^e); "B" ε̃ = ε^e − ω (β:ε^e) β.
     constraint_forces: True (default, exact theory): p̂ = p − Λ_K, A = p_c/2 + c φ_β:(β_b − β);

@@ -41,7 +41,7 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
         "1",
         "stage of the virtual experiment",
         dtype="i4",
-        definition="protocol stage the record belongs to (model.md 1.6)",
+        definition="protocol stage the record belongs to (docs/science/dem-model.md §1.6)",
         flag_values=tuple(STAGE_CODES.values()),
         flag_meanings=tuple(STAGE_CODES),
     ),
@@ -248,7 +248,8 @@ HISTORY_VARIABLES: tuple[Variable, ...] = (
 
 HISTORY: Mapping[str, Variable] = variable_table(HISTORY_VARIABLES)
 
-#: Written by runs of bonded rods only (``[particles] rod_model = "bonded"``, model.md §1.7);
+#: Written by runs of bonded rods only (``[particles] rod_model = "bonded"``,
+#: docs/science/dem-model.md §1.7);
 #: there the stress, the unbalanced-force ratio and the kinetic energy also count the bonds and
 #: the disc bodies.
 BONDED_HISTORY_VARIABLES: tuple[Variable, ...] = (

@@ -30,7 +30,7 @@ I          inertial number max(|ε̇_xx|, |ε̇_yy|) d sqrt(ρ / p)
 C_ij       2D stiffness in Voigt notation (xx, yy, xy), σ_i = C_ij ε_j, γ_xy = 2 ε_xy
 =========  ==========================================================================
 
-Sources: ``/work/shared/design/model.md`` §1.4–1.6 and the project's DEM interfaces note.
+Sources: docs/science/dem-model.md §1.4–§1.6 and §1.8.
 
 Where each part lives (every name stays importable from here)
 --------------------------------------------------------------

@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-#: Stage labels and their integer codes, in the order of the protocol (model.md §1.6); stages
+#: Stage labels and their integer codes, in the order of the protocol
+#: (docs/science/dem-model.md §1.6); stages
 #: added later are appended at the end so the codes of the others keep their values (files
 #: written before read the same): "aggregation" is the optional gas-ageing stage before
 #: "isotropic_to_A" (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`).

@@ -1,4 +1,4 @@
-"""Intra-rod bonds of the bonded-rod model (model.md §1.7) as Taichi functions.
+"""Intra-rod bonds of the bonded-rod model (docs/science/dem-model.md §1.7) as Taichi functions.
 
 In bonded mode every disc is a body (x, y, θ) and disc b is bonded to disc b + 1 of the same rod
 (rod-major order, chains of ``chain`` discs). The bond is in its reference state

@@ -1,4 +1,4 @@
-"""Pair force laws as Taichi functions (model.md §1.2; notes/dem_interfaces.md), each the
+"""Pair force laws as Taichi functions (docs/science/dem-model.md §1.2, §1.8), each the
 scalar form of the numpy reference of the same name in :mod:`dem_taichi.forcelaw`.
 
 Contact: normal spring-dashpot f_c = k_n δ − γ_n v_n (``contact_normal_force``); tangential

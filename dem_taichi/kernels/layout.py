@@ -30,7 +30,7 @@ P_MAX_OFFSET = 16  # max |o_s| of a disc from its rod centroid
 P_MAX_OVERLAP = 17  # blow-up bound on δ (absolute)
 P_REACH = 18  # bound on the centroid branch vector of a listed pair (rod length + list radius)
 P_CUT = 19  # interaction cut-off (centre distance): d, or d + max range of the long-range laws
-# bonded rods (model.md §1.7; unused by rigid rods)
+# bonded rods (docs/science/dem-model.md §1.7; unused by rigid rods)
 P_SPACING = 20  # bond rest length s_0 (the rods' centre spacing)
 P_BOND_KN = 21  # bond stretch stiffness k_bn
 P_BOND_KT = 22  # bond shear stiffness k_bt
