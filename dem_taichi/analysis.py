@@ -50,8 +50,9 @@ def detect_transition(
 ) -> Transition:
     """Find state A: the first relaxed state that carries load through a percolating network.
 
-    Model.md §1.6, step 2: "the first relaxed state in which the static pressure stays positive
-    (p > tolerance) and the contact network percolates (mechanical coordination jumps)".
+    docs/science/dem-model.md §1.6, step 2: "the first relaxed state in which the static
+    pressure stays positive (p > tolerance) and the contact network percolates (mechanical
+    coordination jumps)".
     Rule applied, in order of the relaxed states i = 0, 1, …:
     A is the first i with p_i > ``pressure_tolerance`` and Z_m,i ≥ ``coordination_min`` such that
     every later relaxed state also has p > ``pressure_tolerance`` (the pressure *stays* positive;
