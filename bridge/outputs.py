@@ -27,6 +27,7 @@ import json
 import os
 import stat
 import tempfile
+from collections.abc import Set
 from pathlib import Path, PurePosixPath
 
 __all__ = [
@@ -159,7 +160,7 @@ class Outputs:
             if rel != MANIFEST and before.get(rel) != key:
                 self.written.add(rel)
 
-    def remove_earlier(self, keep: set[str] = frozenset()) -> list[str]:
+    def remove_earlier(self, keep: Set[str] = frozenset()) -> list[str]:
         """Delete the files the earlier manifest lists (regular files, no link on the way),
         except ``keep`` and those written by this calibration; then their folders left empty.
         Returns what was deleted."""
@@ -179,7 +180,7 @@ class Outputs:
                 (self.out / rel).rmdir()  # only when left empty
         return removed
 
-    def save(self, keep: set[str] = frozenset()) -> Path:
+    def save(self, keep: Set[str] = frozenset()) -> Path:
         """Write the manifest: the files written by this calibration, and ``keep`` (earlier
         files still in use, e.g. inputs read from the folder)."""
         path = self.out / MANIFEST

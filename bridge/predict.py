@@ -24,6 +24,7 @@ ln, for v and moduli; absolute for β and η), and ``dem_<name>`` holds the DEM 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -73,10 +74,10 @@ _INPUTS = {
 
 
 def _dataset(values, dem: xr.Dataset, path: str, fitted: set, attrs: dict, inputs=()) -> xr.Dataset:
-    data = {}
+    data: dict[str, tuple[str, Any, dict[str, Any]]] = {}
     for name, array in values.items():
         units, long_name = SERIES_VARIABLES.get(name) or _UNITS[name]
-        var_attrs = {
+        var_attrs: dict[str, str | float] = {
             "units": units,
             "long_name": "TIV " + long_name,
             "role": "input" if name in inputs else _role(fitted, path, name),

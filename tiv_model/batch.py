@@ -156,7 +156,7 @@ def strain_increment(
         "dissipated_energy": batch.dissipated_energy.copy(),
         "plastic": np.zeros(n, dtype=bool),
     }
-    alone = list(np.flatnonzero(bad_trial))
+    alone: list[int] = np.flatnonzero(bad_trial).tolist()
     idx = np.flatnonzero(plastic & ~bad_trial)
     if idx.size:
         scale = np.maximum.reduce([np.abs(trial[idx]).max(axis=1), np.abs(deps[idx]).max(axis=1),

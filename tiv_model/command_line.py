@@ -31,6 +31,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import NoReturn
 
 __all__ = [
     "EXIT_OK",
@@ -98,7 +99,7 @@ class ArgumentParser(argparse.ArgumentParser):
     Sub-command parsers made by ``add_subparsers`` are of the same class.
     """
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 

@@ -203,6 +203,8 @@ def local_solve(model: TriaxialModel, state: State, d_axial: float, d_radial: fl
     if need_tangent:
         if settings.jacobian == "analytic":  # the Jacobian at the converged point
             jac, dsig = _linearise(model, x, ta, tr, beta_n, lnv_n, strain_scale, None, settings)
+        if jac is None or dsig is None:  # as inside the loop (a TypeError in _solve before)
+            raise ConvergenceError("inadmissible point during the local Newton", state)
         # algorithmic tangent dσ/dΔε = (∂σ/∂x) J⁻¹ [e_1, e_2] (R_ε = ε^e − ε^e_n − Δε + ...)
         tangent = np.empty((2, 2))
         for k in range(2):
@@ -468,7 +470,7 @@ def nested_mixed_step(
             local_error = exc.args[0]
         if failed or (last_good is not None and rnorm > best):
             backtracks += 1
-            if last_good is None or backtracks > 12:
+            if last_good is None or correction is None or backtracks > 12:
                 break
             correction = 0.5 * correction
             for k, i in enumerate(u):
