@@ -11,8 +11,8 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
 ``[particles]``     n_rods, n_spheres, diameter d, spacing, disc_mass m, initial_area_fraction,
                     initial_speed (rms of the random gas velocity components), rod_model
                     (``"rigid"`` clumps, default, or ``"bonded"`` chains of disc bodies)
-``[bonds]``         bonded rods only (model.md §1.7): normal, shear, bending (k_bn/k_n,
-                    k_bt/k_n, κ_b/(k_n d²)), damping_ratio, breakage_force
+``[bonds]``         bonded rods only (docs/science/dem-model.md §1.7): normal, shear, bending
+                    (k_bn/k_n, k_bt/k_n, κ_b/(k_n d²)), damping_ratio, breakage_force
 ``[contact]``       k_n, e_n *or* gamma_n, restitution_model (discrete|continuous), k_t, gamma_t,
                     mu, friction (on/off); optional rolling resistance at inter-rod contacts:
                     rolling_stiffness k_r (0: off), rolling_friction μ_r, rolling_damping γ_r

@@ -1,4 +1,5 @@
-"""Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]`` (model.md §1.6).
+"""Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]``
+(docs/science/dem-model.md §1.6).
 
 Both are frozen dataclasses validated by :class:`dem_taichi.sections.SceneSection` (type, range,
 choices; the message names the key and what is allowed); the scene loader
@@ -8,8 +9,10 @@ instances are ``scene.extensions["protocol"]`` and ``scene.extensions["probing"]
 has no such section.
 
 Units: DEM units (d = 1, disc mass = 1); stresses in force/length, compression positive; strains
-logarithmic, compression positive. ``stress_scale_kpa`` states what one DEM stress unit means in
-kPa (a reading of the results, not an input of the physics).
+logarithmic, compression positive. Every field's unit and a one-line description are in its
+``metadata`` (``unit=``, ``doc=``), from which the documentation's scene reference is generated.
+``stress_scale_kpa`` states what one DEM stress unit means in kPa (a reading of the results, not
+an input of the physics).
 
 Symbols: p = (σ_xx + σ_yy)/2, q = σ_yy − σ_xx, η = q/p, Z_m mechanical coordination number,
 I inertial number, UFR unbalanced-force ratio (definitions: dem_taichi.io.schema).
@@ -22,6 +25,7 @@ from dataclasses import dataclass, field
 
 from dem_taichi.sections import SceneError, SceneSection
 from dem_taichi.sections import field_choices as _choices
+from dem_taichi.sections import field_doc as _doc
 from dem_taichi.sections import field_list as _list
 from dem_taichi.sections import field_range as _range
 
@@ -57,7 +61,8 @@ def parse_number_list(text: str, key: str) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class ProtocolConfig(SceneSection):
-    """``[protocol]``: the loading paths of the study (model.md §1.6, steps 1–3).
+    """``[protocol]``: the loading paths of the study (docs/science/dem-model.md §1.6,
+    steps 1–3).
 
     Stages: gas → isotropic strain-controlled compression in increments, each relaxed, until the
     fluid–solid transition (state A) → A→B isotropic (σ_xx = σ_yy servo) up to
@@ -173,62 +178,371 @@ class ProtocolConfig(SceneSection):
     """
 
     SECTION = "protocol"
-    stress_scale_kpa: float = field(default=1.0, metadata=_range(0.0, None, lo_open=True))
-    target_mean_stress: float = field(default=100.0, metadata=_range(0.0, None, lo_open=True))
-    path_increments: int = field(default=6, metadata=_range(1, 1000))
-    unloading_increments: int = field(default=4, metadata=_range(1, 1000))
-    radial_stress_ratios: str = field(default="", metadata=_list("η of the radial paths"))
-    run_isotropic: bool = True
-    run_k0: bool = True
-    run_unloading: bool = True
-    compression_increment: float = field(default=0.02, metadata=_range(0.0, 0.2, lo_open=True))
-    min_compression_increment: float = field(default=1e-5, metadata=_range(0.0, 0.2, lo_open=True))
-    transition_pressure_factor: float = field(default=4.0, metadata=_range(1.0))
-    gas_strain_rate: float = field(default=0.05, metadata=_range(0.0, None, lo_open=True))
-    pressure_tolerance: float = field(default=0.5, metadata=_range(0.0, None, lo_open=True))
-    coordination_min: float = field(default=3.0, metadata=_range(0.0))
-    confirm_increments: int = field(default=2, metadata=_range(0, 100))
-    max_compression_increments: int = field(default=400, metadata=_range(1))
-    relax_unbalanced_force: float = field(default=1e-4, metadata=_range(0.0, 1.0, lo_open=True))
-    relax_kinetic_energy_per_rod: float = field(
-        default=1.0, metadata=_range(0.0, None, lo_open=True)
+    stress_scale_kpa: float = field(
+        default=1.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=(
+                "kPa per DEM stress unit (force/length), stated in the results (a "
+                "reading of them, not an input of the physics)"
+            ),
+            unit="kPa/(force/length)",
+        ),
     )
-    relax_check_steps: int = field(default=500, metadata=_range(1))
-    relax_max_steps: int = field(default=200_000, metadata=_range(1))
-    stress_tolerance: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
-    servo_time: float = field(default=2.0, metadata=_range(0.0, None, lo_open=True))
-    servo_near_target: float = field(default=0.05, metadata=_range(0.0, 1.0, lo_open=True))
-    servo_stall_times: float = field(default=10.0, metadata=_range(0.0, None, lo_open=True))
-    servo_time_max_factor: float = field(default=64.0, metadata=_range(1.0))
-    servo_stiffness: str = field(default="elastic", metadata=_choices("elastic", "secant"))
-    servo_softening_min: float = field(default=0.01, metadata=_range(0.0, 1.0, lo_open=True))
-    servo_check_steps: int = field(default=100, metadata=_range(1))
-    servo_max_steps: int = field(default=2_000_000, metadata=_range(1))
-    load_steps_min: int = field(default=200, metadata=_range(1))
-    unbalanced_force_max: float = field(default=0.1, metadata=_range(0.0, None, lo_open=True))
-    inertial_number_safety: float = field(default=0.5, metadata=_range(0.0, 1.0, lo_open=True))
-    save_states: bool = True
-    save_path_states: bool = False
+    target_mean_stress: float = field(
+        default=100.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="p at B and C and at the ends of the radial paths",
+            unit="force/length",
+        ),
+    )
+    path_increments: int = field(
+        default=6,
+        metadata=_range(
+            1,
+            1000,
+            doc=("relaxed stress increments (log-spaced in p) along A→B, A→C and the radial paths"),
+            unit="1",
+        ),
+    )
+    unloading_increments: int = field(
+        default=4,
+        metadata=_range(1, 1000, doc="relaxed increments of q (linear to 0) along C→B", unit="1"),
+    )
+    radial_stress_ratios: str = field(
+        default="",
+        metadata=_list(doc='η = q/p of the radial paths from A, a list ("" = none)', unit="1"),
+    )
+    run_isotropic: bool = field(default=True, metadata=_doc("run the isotropic path A→B", "-"))
+    run_k0: bool = field(default=True, metadata=_doc("run the K0 path A→C (ε_xx = 0)", "-"))
+    run_unloading: bool = field(
+        default=True, metadata=_doc("run the unloading C→B at constant p (needs run_k0)", "-")
+    )
+    compression_increment: float = field(
+        default=0.02,
+        metadata=_range(
+            0.0,
+            0.2,
+            lo_open=True,
+            doc=("per-axis logarithmic strain of a (coarse) compression increment towards A"),
+            unit="1",
+        ),
+    )
+    min_compression_increment: float = field(
+        default=1e-5,
+        metadata=_range(
+            0.0,
+            0.2,
+            lo_open=True,
+            doc="smallest increment of the halving that resolves A",
+            unit="1",
+        ),
+    )
+    transition_pressure_factor: float = field(
+        default=4.0,
+        metadata=_range(
+            1.0, doc="halving stops once a candidate A has p ≤ this × pressure_tolerance", unit="1"
+        ),
+    )
+    gas_strain_rate: float = field(
+        default=0.05,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="strain-rate cap of the compression while p ≤ pressure_tolerance",
+            unit="1/time",
+        ),
+    )
+    pressure_tolerance: float = field(
+        default=0.5,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=(
+                "relaxed static p above which a state carries load (the A criterion; "
+                "the floor stress of the rate caps)"
+            ),
+            unit="force/length",
+        ),
+    )
+    coordination_min: float = field(
+        default=3.0,
+        metadata=_range(
+            0.0, doc="Z_m at or above which the contact network is taken as percolating", unit="1"
+        ),
+    )
+    confirm_increments: int = field(
+        default=2,
+        metadata=_range(
+            0,
+            100,
+            doc=(
+                "relaxed increments after a candidate A over which p must stay above the tolerance"
+            ),
+            unit="1",
+        ),
+    )
+    max_compression_increments: int = field(
+        default=400,
+        metadata=_range(1, doc="give up (error) after this many compression increments", unit="1"),
+    )
+    relax_unbalanced_force: float = field(
+        default=1e-4,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="unbalanced-force ratio below which a state is relaxed (static)",
+            unit="1",
+        ),
+    )
+    relax_kinetic_energy_per_rod: float = field(
+        default=1.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="kinetic energy per rod below which a state is relaxed (with the UFR)",
+            unit="energy",
+        ),
+    )
+    relax_check_steps: int = field(
+        default=500, metadata=_range(1, doc="steps between relaxation checks", unit="steps")
+    )
+    relax_max_steps: int = field(
+        default=200_000,
+        metadata=_range(
+            1,
+            doc=("most steps of one relaxation (then it continues, recorded as not relaxed)"),
+            unit="steps",
+        ),
+    )
+    stress_tolerance: float = field(
+        default=1e-3,
+        metadata=_range(
+            0.0,
+            0.1,
+            lo_open=True,
+            doc="|σ − σ_target| / σ_target allowed at relaxed states",
+            unit="1",
+        ),
+    )
+    servo_time: float = field(
+        default=2.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="time constant T of the stress servo, ε̇ = C⁻¹ (σ_target − σ) / T",
+            unit="time",
+        ),
+    )
+    servo_near_target: float = field(
+        default=0.05,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc=(
+                "hunting detection: the residual counts as near within this fraction of the target"
+            ),
+            unit="1",
+        ),
+    )
+    servo_stall_times: float = field(
+        default=10.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="servo times T without settling after which T is doubled",
+            unit="1",
+        ),
+    )
+    servo_time_max_factor: float = field(
+        default=64.0,
+        metadata=_range(1.0, doc="largest servo time, as a multiple of servo_time", unit="1"),
+    )
+    servo_stiffness: str = field(
+        default="elastic",
+        metadata=_choices(
+            "elastic",
+            "secant",
+            doc=(
+                "stiffness of the servo's rate law: 'elastic' the linear response C of "
+                "the relaxed network, 'secant' s C with s the measured secant/elastic "
+                "ratio"
+            ),
+        ),
+    )
+    servo_softening_min: float = field(
+        default=0.01,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="smallest secant/elastic ratio s of the secant servo",
+            unit="1",
+        ),
+    )
+    servo_check_steps: int = field(
+        default=100, metadata=_range(1, doc="steps between servo updates", unit="steps")
+    )
+    servo_max_steps: int = field(
+        default=2_000_000,
+        metadata=_range(
+            1, doc="most steps to reach one stress target (then an error)", unit="steps"
+        ),
+    )
+    load_steps_min: int = field(
+        default=200,
+        metadata=_range(
+            1, doc="fewest steps over which a strain increment is applied", unit="steps"
+        ),
+    )
+    unbalanced_force_max: float = field(
+        default=0.1,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=("unbalanced-force ratio limit while loading; above it the servo rate is halved"),
+            unit="1",
+        ),
+    )
+    inertial_number_safety: float = field(
+        default=0.5,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="the rates are capped at this fraction of [control] inertial_number_max",
+            unit="1",
+        ),
+    )
+    save_states: bool = field(
+        default=True,
+        metadata=_doc("write a checkpoint state_<label>.npz at every labelled state", "-"),
+    )
+    save_path_states: bool = field(
+        default=False,
+        metadata=_doc(
+            (
+                "also write path_<stage>_<increment>.npz at every relaxed increment of "
+                "the paths from A (needs save_states)"
+            ),
+            "-",
+        ),
+    )
     aggregation: str | None = field(
-        default=None, metadata={**_choices("none", "time", "coordination"), "optional": True}
+        default=None,
+        metadata={
+            **_choices(
+                "none",
+                "time",
+                "coordination",
+                doc=(
+                    "ageing of the gas before the compression to A: 'none' (unset), 'time',"
+                    " or until a mean coordination ('coordination')"
+                ),
+            ),
+            "optional": True,
+        },
     )
     aggregation_time: float | None = field(
-        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc="ageing time at fixed cell (aggregation = 'time')",
+                unit="time",
+            ),
+            "optional": True,
+        },
     )
     aggregation_coordination: float | None = field(
-        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "mean coordination Z = 2 n_contacts / n_rods that ends the ageing "
+                    "(aggregation = 'coordination')"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
     )
     aggregation_max_time: float | None = field(
-        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc="cap of the ageing time (aggregation = 'coordination')",
+                unit="time",
+            ),
+            "optional": True,
+        },
     )
     aggregation_area_fraction: float | None = field(
-        default=None, metadata={**_range(0.0, 1.0, lo_open=True, hi_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                1.0,
+                lo_open=True,
+                hi_open=True,
+                doc=(
+                    "area fraction φ the gas is compressed to before the ageing (unset: the"
+                    " initial one, no compression)"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
     )
     aggregation_speed: float | None = field(
-        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "rms velocity component the rods are rescaled to during the ageing "
+                    "(unset: free cooling)"
+                ),
+                unit="length/time",
+            ),
+            "optional": True,
+        },
     )
     pressure_tolerance_reduced: float | None = field(
-        default=None, metadata={**_range(0.0, None, lo_open=True), "optional": True}
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=("the A criterion's tolerance as P* = p d / F_max (unset: pressure_tolerance)"),
+                unit="1",
+            ),
+            "optional": True,
+        },
     )
 
     def check(self) -> None:
@@ -333,7 +647,8 @@ class ProtocolConfig(SceneSection):
 
 @dataclass(frozen=True)
 class ProbingConfig(SceneSection):
-    """``[probing]``: elastic probes at states of every path (model.md §1.6, step 4).
+    """``[probing]``: elastic probes at states of every path (docs/science/dem-model.md §1.6,
+    step 4).
 
     Fields (defaults in brackets):
 
@@ -349,7 +664,8 @@ class ProbingConfig(SceneSection):
       state. On large scenes (``paper``) the sweep costs ~3000× the linear response, so it is
       kept at one state as the check of the linear response there.
     - ``amplitude_min`` [1e-9], ``amplitude_max`` [1e-3], ``amplitudes_per_decade`` [1]:
-      the log-spaced strain amplitudes of the sweep (model.md: ≈1e-7…1e-3). The sweep starts at
+      the log-spaced strain amplitudes of the sweep (docs/science/dem-model.md §1.6:
+      ≈1e-7…1e-3). The sweep starts at
       1e-9 because a state reached by monotonic loading sits on its yield surface: measured on
       the smoke scene at the end of K0 loading, the continued-loading branch (+Δε_yy) is
       already plastic at 1e-7 (secant 22e3 against 40e3 on reversal), the ± average agrees
@@ -368,20 +684,82 @@ class ProbingConfig(SceneSection):
     """
 
     SECTION = "probing"
-    enabled: bool = True
-    states: str = field(default="A, B, C, B'", metadata=_list("probed states"))
-    every_n_increments: int = field(default=2, metadata=_range(0))
-    dynamic: bool = True
-    dynamic_states: str = field(default="all", metadata=_list("states of the dynamic sweep"))
-    amplitude_min: float = field(default=1e-9, metadata=_range(0.0, 0.1, lo_open=True))
-    amplitude_max: float = field(default=1e-3, metadata=_range(0.0, 0.1, lo_open=True))
-    amplitudes_per_decade: int = field(default=1, metadata=_range(1, 20))
-    apply_steps: int = field(default=200, metadata=_range(1))
-    relax_unbalanced_force: float = field(default=1e-7, metadata=_range(0.0, 1.0, lo_open=True))
-    relax_max_steps: int = field(default=60_000, metadata=_range(1))
-    plateau_tolerance: float = field(default=0.02, metadata=_range(0.0, 1.0, lo_open=True))
-    linear: bool = True
-    sliding_contacts: str = field(default="stuck", metadata=_choices("stuck", "free"))
+    enabled: bool = field(default=True, metadata=_doc("probe at all", "-"))
+    states: str = field(
+        default="A, B, C, B'",
+        metadata=_list(doc='labelled states probed (A, B, C, B\', R<k>_end); "" = none', unit="-"),
+    )
+    every_n_increments: int = field(
+        default=2,
+        metadata=_range(
+            0,
+            doc=(
+                "also probe every n-th relaxed increment of each path (0: only the labelled states)"
+            ),
+            unit="1",
+        ),
+    )
+    dynamic: bool = field(
+        default=True, metadata=_doc("run the dynamic strain probes (amplitude sweep)", "-")
+    )
+    dynamic_states: str = field(
+        default="all",
+        metadata=_list(
+            doc=('where the dynamic sweep runs: "all" probed states, or a list of probe labels'),
+            unit="-",
+        ),
+    )
+    amplitude_min: float = field(
+        default=1e-9,
+        metadata=_range(
+            0.0, 0.1, lo_open=True, doc="smallest strain amplitude of the dynamic sweep", unit="1"
+        ),
+    )
+    amplitude_max: float = field(
+        default=1e-3,
+        metadata=_range(
+            0.0, 0.1, lo_open=True, doc="largest strain amplitude of the dynamic sweep", unit="1"
+        ),
+    )
+    amplitudes_per_decade: int = field(
+        default=1,
+        metadata=_range(1, 20, doc="log-spaced amplitudes per decade of the sweep", unit="1"),
+    )
+    apply_steps: int = field(
+        default=200,
+        metadata=_range(1, doc="fewest steps over which a probe strain is applied", unit="steps"),
+    )
+    relax_unbalanced_force: float = field(
+        default=1e-7,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="unbalanced-force ratio at which a probe is relaxed",
+            unit="1",
+        ),
+    )
+    relax_max_steps: int = field(
+        default=60_000, metadata=_range(1, doc="most relaxation steps of one probe", unit="steps")
+    )
+    plateau_tolerance: float = field(
+        default=0.02,
+        metadata=_range(
+            0.0, 1.0, lo_open=True, doc="relative tolerance of the elastic-plateau rule", unit="1"
+        ),
+    )
+    linear: bool = field(default=True, metadata=_doc("run the linear-response probe", "-"))
+    sliding_contacts: str = field(
+        default="stuck",
+        metadata=_choices(
+            "stuck",
+            "free",
+            doc=(
+                "contacts at the Coulomb cap in the linear response: 'stuck' spring "
+                "k_t, 'free' stay on the cap"
+            ),
+        ),
+    )
 
     def check(self) -> None:
         if self.amplitude_min > self.amplitude_max:
