@@ -235,8 +235,8 @@ class _Fabric(_Stage):
             wanted = [n for n in ("fabric", "specific_volume") if n in options.fabric_series]
             self.radial[name] = (ds, {n: ds[n].values[1:] for n in wanted}, WarmStart())
             for n in wanted:
-                key = "ln_specific_volume" if n == "specific_volume" else n
-                self._scales[f"{name}:{key}"] = options.scale(key)
+                series_name = "ln_specific_volume" if n == "specific_volume" else n
+                self._scales[f"{name}:{series_name}"] = options.scale(series_name)
             self.fitted += tuple((name, n) for n in wanted)
 
     def pieces(self, params):
@@ -256,14 +256,14 @@ class _Fabric(_Stage):
                 out["k0:ln_specific_volume"] = np.log(model) - np.log(data)
             else:
                 out[f"k0:{name}"] = model - data
-        for path, (ds, data, warm) in self.radial.items():
+        for path, (ds, radial_data, warm) in self.radial.items():
             sa = ds["axial_stress"].values.copy()
             sr = ds["radial_stress"].values.copy()
             sa[0] = sr[0] = self.p_start  # from the model's state A, as the K0 run
             start = start_state(self.p_start, params, self.model_options, self.start_fabric)
             run = stress_path_run(sa, sr, params, self.model_options, start, self.max_increments,
                                   warm=warm)  # fmt: skip
-            for name, values in data.items():
+            for name, values in radial_data.items():
                 if name == "specific_volume":
                     out[f"{path}:ln_specific_volume"] = np.log(run[name][1:]) - np.log(values)
                 else:

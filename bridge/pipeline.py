@@ -274,8 +274,8 @@ def calibrate_from_results(
         "paths": ", ".join(f"{p} ({series[p].sizes['point']} points)" for p in series),
         "probe paths": ", ".join(f"{p} ({ds.sizes['point']})" for p, ds in probes.items()) or "—",
         "stress scale": f"{scale:g} kPa per DEM stress unit ({scale_note})",
-        "convention": convention.attrs()["convention_stress"] + f" [{convention.name}]",
-        "fabric": convention.attrs()["convention_fabric"] + f", F = {convention.fabric_scale:g}",
+        "convention": f"{convention.attrs()['convention_stress']} [{convention.name}]",
+        "fabric": f"{convention.attrs()['convention_fabric']}, F = {convention.fabric_scale:g}",
         "moduli": convention.attrs()["convention_moduli"],
         "stages": ", ".join(stages),
         "model fabric at A": options.calibration.initial_fabric,
@@ -310,7 +310,11 @@ def calibrate_from_results(
     outputs.path("calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
     files["calibration"] = str(out / "calibration.json")
     if own:
-        inputs = {_relative_inside(p, out) for p in (used_history, probes_path)} - {None}
+        inputs = {
+            inside
+            for p in (used_history, probes_path)
+            if (inside := _relative_inside(p, out)) is not None
+        }
         outputs.remove_earlier(keep=inputs)
         files["manifest"] = str(outputs.save(keep=inputs & earlier))
     return outcome

@@ -517,7 +517,7 @@ def history_from_model(
     """
     from dem_taichi.io.schema import HISTORY, stage_code
 
-    order = [p for p in ("isotropic", "k0", "unloading") if p in paths]
+    order: list[str] = [p for p in ("isotropic", "k0", "unloading") if p in paths]
     radial = sorted((p for p in paths if p.startswith("radial_")), key=lambda p: int(p[7:]))
     if not order:
         raise SeriesError(f"no known path among {sorted(paths)}; use {sorted(PATHS)}")

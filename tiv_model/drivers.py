@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -174,11 +175,11 @@ def to_dataset(
     columns = records(states, params, options)
     data_vars = {}
     for name, (units, long_name) in VARIABLES.items():
-        attrs = {"units": units, "long_name": long_name}
+        variable_attrs = {"units": units, "long_name": long_name}
         if name.endswith("_stress") or name in ("constraint_force", "preconsolidation_pressure"):
-            attrs["sign_convention"] = "compression_positive"
-        data_vars[name] = ("step", columns[name], attrs)
-    attrs = {
+            variable_attrs["sign_convention"] = "compression_positive"
+        data_vars[name] = ("step", columns[name], variable_attrs)
+    attrs: dict[str, Any] = {
         "Conventions": "CF-1.11",
         "title": title,
         "source": f"tiv_model {__version__} (hyperplastic anisotropic clay model)",
