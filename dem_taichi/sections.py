@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
+from typing import Any, cast
 
 __all__ = [
     "MAX_MAGNITUDE",
@@ -116,7 +117,8 @@ class SceneSection:
     SECTION = ""
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
+        # a subclass is a dataclass; this base is not (mypy sees SceneSection)
+        for f in dataclasses.fields(cast(Any, self)):
             value = getattr(self, f.name)
             key = f"[{self.SECTION}] {f.name}"
             if value is None:

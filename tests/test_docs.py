@@ -6,7 +6,8 @@ are complete, its code examples run, and the docstrings' citations of docs pages
 - The scene reference (``docs/hooks.py``: ``scene_reference``) lists every key of every scene
   section with its default, and every key carries a description and a unit in its metadata.
 - The results-files reference lists every variable of the schema tables with its units.
-- Every fenced ``python`` block of ``docs/**/*.md`` and ``README.md`` runs: the blocks of one
+- Every fenced ``python`` block of ``docs/**/*.md`` and ``README.md`` runs (README.md's with
+  ``make test-slow``: it runs a whole protocol): the blocks of one
   page in order, in one fresh process, in an empty temporary folder (blocks fenced as ``pycon``,
   ``text``, ``console``, ``bash`` or ``toml`` are not run).
 - Every ``docs/<page>.md`` cited in a docstring of ``dem_taichi``, ``tiv_model`` or ``bridge``
@@ -197,7 +198,7 @@ def test_results_reference_lists_every_variable():
     from tiv_model.drivers import VARIABLES
 
     text = hooks.results_files_reference()
-    rows = {}
+    rows: dict[str, list[list[str]]] = {}
     for line in text.splitlines():
         if line.startswith("| `"):
             cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
@@ -269,9 +270,22 @@ def test_fenced_blocks_are_found():
     ]
 
 
-@pytest.mark.parametrize(
-    "page", _example_pages(), ids=lambda p: str(p.relative_to(ROOT)).replace(os.sep, "/")
-)
+#: pages whose examples take minutes, run by ``make test-slow`` only: page -> why
+SLOW_EXAMPLE_PAGES = {
+    "README.md": "runs the smoke scene's whole protocol (run_protocol): 1-3 min on 2 cores",
+}
+
+
+def _example_params() -> list:
+    params = []
+    for page in _example_pages():
+        name = page.relative_to(ROOT).as_posix()
+        marks = [pytest.mark.slow] if name in SLOW_EXAMPLE_PAGES else []
+        params.append(pytest.param(page, id=name, marks=marks))
+    return params
+
+
+@pytest.mark.parametrize("page", _example_params())
 def test_code_examples_run(page, tmp_path):
     blocks = [
         (line, code)
