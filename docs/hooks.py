@@ -305,19 +305,30 @@ def results_files_reference() -> str:
         "",
         "## A protocol run directory",
         "",
-        "`python -m dem_taichi protocol SCENE --out DIR` (or `dem_taichi.run_protocol`) writes:",
+        "`python -m dem_taichi protocol SCENE --out DIR` (or `dem_taichi.run_protocol`) writes "
+        "these (`python -m dem_taichi run`, the built-in run, writes `run.json`, `scene.toml`, "
+        "`history.nc` and `checkpoints/`):",
         "",
         "| file | what |",
         "|---|---|",
+        "| `run.json` | the run id, the scene's SHA-256 and the manifest of every file and "
+        "folder the run wrote |",
+        "| `scene.toml` | the scene as run (every key, defaults included) |",
         "| `history.nc` | one record per output step along the unlimited dimension `time` "
         "(CDF5, appended and synced as the run goes: a killed run leaves a readable file) |",
         "| `relaxed_states.nc` | the same variables, one record per relaxed state of the paths "
         "(the states the findings are computed from) |",
         "| `probes.nc` | the elastic probes: one entry per probed state along `probe` |",
-        "| `configuration_<label>.nc` | the rods and the cell at each labelled state "
-        "(A, B, C, B', R*k*_end) |",
-        "| `state_<label>.npz` | checkpoints (the engine's state, for a resume or a later probe) |",
-        "| `run.json` | the run id, the scene's SHA-256 and the manifest of every file written |",
+        "| `configuration_*.nc` | the rods and the cell at each labelled state "
+        "(`configuration_A.nc`, …) |",
+        "| `summary.json`, `report.md`, `figure_*.png` | the run's findings, its report and "
+        "figures |",
+        "| `state_*.npz` | checkpoints at the labelled states (`[protocol] save_states`) |",
+        "| `path_*.npz` | checkpoints at every relaxed increment of the paths "
+        "(`[protocol] save_path_states`) |",
+        "| `checkpoints/` | the built-in run's checkpoints (`dem_taichi run`), for `--resume` |",
+        "| `resume/` | the protocol's saved stages (state A, finished branches), for `--resume` |",
+        "| `paraview/` | VTK snapshots of the labelled states (`--paraview`) |",
         "",
         "### history.nc and relaxed_states.nc",
         "",

@@ -215,6 +215,14 @@ def test_results_reference_lists_every_variable():
         assert name in rows and any(f"`{units}`" in cells for cells in rows[name]), name
 
 
+def test_results_reference_lists_every_file_of_a_run_directory():
+    from dem_taichi.io.run_manifest import RUN_FILE_PATTERNS
+
+    text = hooks.results_files_reference()
+    for pattern in RUN_FILE_PATTERNS:
+        assert re.search(rf"`{re.escape(pattern)}/?`", text), pattern
+
+
 # ------------------------------------------------------------------------------------------
 # Code examples
 # ------------------------------------------------------------------------------------------
