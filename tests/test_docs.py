@@ -112,6 +112,58 @@ def test_site_has_the_generated_and_exposed_pages(built_site):
             assert (site / target).exists(), f"{source} is not in the site at {target}"
 
 
+def _nav_pages(nav) -> list[str]:
+    pages = []
+    for entry in nav:
+        value = next(iter(entry.values())) if isinstance(entry, dict) else entry
+        pages += _nav_pages(value) if isinstance(value, list) else [value]
+    return pages
+
+
+def test_every_page_is_in_the_nav():
+    """Every page under docs/ is reachable from the nav (the build only notes omitted pages,
+    because the exposed benchmarks/results files are pages outside the nav); every
+    docs/results/*.md is listed without an edit of mkdocs.yml."""
+    pytest.importorskip("mkdocs", reason="the docs extra is not installed (.[docs])")
+    import yaml
+
+    config = yaml.safe_load(
+        "\n".join(
+            line
+            for line in (ROOT / "mkdocs.yml").read_text("utf-8").splitlines()
+            if "!!python" not in line
+        )
+    )
+    hooks.on_config(config)
+    nav = set(_nav_pages(config["nav"]))
+    pages = {p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*.md")}
+    assert pages - nav == set(), "pages under docs/ that the nav does not list"
+    generated = {hooks.SCENE_REFERENCE, hooks.RESULTS_REFERENCE, *hooks.PROJECT_FILES}
+    assert nav - pages - generated == set(), "nav entries without a page"
+    assert [p for p in _nav_pages(config["nav"]) if p.startswith("results/")] == [
+        "results/index.md",
+        *sorted(p for p in pages if p.startswith("results/") and p != "results/index.md"),
+    ]
+
+
+def test_links_of_the_exposed_repository_files():
+    text = (
+        "[guide](docs/guide/engine.md#rigid-or-bonded-rods) "
+        "[bench](benchmarks/results/speed_accuracy.md) "
+        "![figure](benchmarks/results/speed_accuracy.png) "
+        "[code](dem_taichi/config.py) [web](https://example.org/x.md) [here](#section)"
+    )
+    out = hooks.rewrite_repository_links(text, ROOT / "ARCHITECTURE.md", "project/architecture.md")
+    assert "[guide](../guide/engine.md#rigid-or-bonded-rods)" in out
+    assert "[bench](../results/files/speed_accuracy.md)" in out
+    assert "![figure](../results/files/speed_accuracy.png)" in out
+    assert "code (`dem_taichi/config.py`)" in out and "(dem_taichi/config.py)" not in out
+    assert "[web](https://example.org/x.md)" in out and "[here](#section)" in out
+    missing = "![plot](no_such_figure.png) [table](speed_accuracy.csv)"
+    out = hooks.drop_missing_links(missing, hooks.RESULTS / "report.md")
+    assert "![plot]" not in out and "[table](speed_accuracy.csv)" in out
+
+
 # ------------------------------------------------------------------------------------------
 # The scene reference
 # ------------------------------------------------------------------------------------------
