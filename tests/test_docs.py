@@ -112,6 +112,20 @@ def test_site_has_the_generated_and_exposed_pages(built_site):
             assert (site / target).exists(), f"{source} is not in the site at {target}"
 
 
+def test_site_has_no_duplicate_anchors(built_site):
+    """An object documented twice (a top-level name and its module) gives two equal ids."""
+    rc, _output, site = built_site
+    if rc != 0:
+        pytest.skip("the build failed (test_site_builds_with_warnings_as_errors)")
+    duplicated = {}
+    for page in sorted(site.rglob("index.html")):
+        ids = re.findall(r' id="([^"]+)"', page.read_text(encoding="utf-8"))
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        if twice:
+            duplicated[page.relative_to(site).as_posix()] = twice[:5]
+    assert not duplicated, f"ids used twice on a page: {duplicated}"
+
+
 def _nav_pages(nav) -> list[str]:
     pages = []
     for entry in nav:
