@@ -23,6 +23,7 @@ import re
 import subprocess
 import sys
 import textwrap
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -119,8 +120,8 @@ def test_site_has_no_duplicate_anchors(built_site):
         pytest.skip("the build failed (test_site_builds_with_warnings_as_errors)")
     duplicated = {}
     for page in sorted(site.rglob("index.html")):
-        ids = re.findall(r' id="([^"]+)"', page.read_text(encoding="utf-8"))
-        twice = sorted({i for i in ids if ids.count(i) > 1})
+        ids = Counter(re.findall(r' id="([^"]+)"', page.read_text(encoding="utf-8")))
+        twice = sorted(i for i, n in ids.items() if n > 1)
         if twice:
             duplicated[page.relative_to(site).as_posix()] = twice[:5]
     assert not duplicated, f"ids used twice on a page: {duplicated}"
