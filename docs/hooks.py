@@ -138,7 +138,9 @@ def _first_paragraph(doc: str | None) -> str:
         return ""
     text = " ".join(doc.strip().split("\n\n")[0].split())
     text = re.sub(r":(?:py:)?[a-z]+:`~?\.?([^`]+)`", r"`\1`", text)
-    return re.sub(r"``([^`]+)``", r"`\1`", text)
+    text = re.sub(r"``([^`]+)``", r"`\1`", text)
+    # a cited docs page (docs/science/dem-model.md §1.7) as a link from reference/
+    return re.sub(r"(?<![`\w/])docs/([\w/-]+\.md)(?![`\w])", r"[\g<0>](../\1)", text)
 
 
 def _presets_table() -> list[str]:
