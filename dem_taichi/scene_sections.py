@@ -187,7 +187,8 @@ class Contact(SceneSection):
         default=2.0e4,
         metadata=_range(
             0.0,
-            doc="tangential spring stiffness k_t (at most the leapfrog bound of dt_safety × k_n)",
+            doc="tangential spring stiffness k_t; k_t/k_n at most the leapfrog bound of "
+            "dt_safety (6.0 at 0.15)",
             unit="force/length",
         ),
     )
@@ -356,8 +357,9 @@ class LongRange(SceneSection):
 
 @dataclass(frozen=True)
 class VanDerWaals(SceneSection):
-    """``[van_der_waals]``: a short-range attraction between every pair of discs of different
-    rods, whatever their charge (the long-range law with a negative sign)."""
+    """``[van_der_waals]``: an attraction between charged discs of different rods (both charges
+    non-zero), whatever their signs: the long-range law with the sign −1
+    (docs/science/dem-model.md §1.2)."""
 
     SECTION = "van_der_waals"
     enabled: bool = field(default=False, metadata=_doc("van der Waals attraction on", "-"))
@@ -428,7 +430,11 @@ class Integration(SceneSection):
     steps_per_call: int = field(
         default=100,
         metadata=_range(
-            1, 1_000_000, doc="time steps fused into one kernel call (serial mode)", unit="steps"
+            1,
+            1_000_000,
+            doc="time steps per chunk between the host's checks (blow-up, neighbour capacity, "
+            "output); serial mode fuses them in one kernel call",
+            unit="steps",
         ),
     )
     skin: float = field(
@@ -633,7 +639,12 @@ class Output(SceneSection):
     SECTION = "output"
     every: int = field(
         default=1000,
-        metadata=_range(1, doc="steps between history records of the built-in run", unit="steps"),
+        metadata=_range(
+            1,
+            doc="steps between history records of the built-in run (and the default "
+            "output_every of Simulation.run)",
+            unit="steps",
+        ),
     )
     checkpoint_every: int = field(
         default=0,
