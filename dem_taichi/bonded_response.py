@@ -18,7 +18,7 @@ for a snapshot with bonds and :func:`dem_taichi.linear_response.linear_response`
 from __future__ import annotations
 
 import time
-from types import SimpleNamespace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -59,6 +59,18 @@ def network_response(
     )  # fmt: skip
 
 
+@dataclass(frozen=True)
+class _Fragments:
+    """The fragments as the bodies of :func:`kept_network` (a ``PairGraph``: one disc each)."""
+
+    n_rods: int
+    n_spheres: int
+    pair_i: np.ndarray
+    pair_j: np.ndarray
+    pair_shift: np.ndarray
+    cell_lengths: np.ndarray
+
+
 def fragments(n_discs: int, g: np.ndarray, intact: np.ndarray) -> np.ndarray:
     """Label (M,) of the fragment of every disc: discs joined by intact bonds share a label."""
     joined = np.zeros(n_discs, dtype=bool)  # disc d joined to d − 1
@@ -74,6 +86,8 @@ def bond_state(snapshot: NetworkSnapshot):
     :class:`dem_taichi.bonds.BondResult`; its ``separation`` is d = x_h − x_g).
     """
     bonds = snapshot.bonds
+    if bonds is None:
+        raise ValueError("bond_state needs a snapshot of bonded rods (snapshot.bonds)")
     g = bonds.g[bonds.intact]
     law = BondParameters(bonds.k_n, bonds.k_t, bonds.k_b, 0.0, 0.0, 0.0, bonds.rest_length)
     # the snapshot's chains are contiguous: the minimum image leaves every bond vector as it is
@@ -121,7 +135,7 @@ def bonded_response(
     # fragments (rods, or their pieces) are pruned as rigid rods are
     fragment = fragments(n_discs, bonds.g, bonds.intact)
     frag_i, frag_j = fragment[snapshot.pair_i], fragment[snapshot.pair_j]
-    proxy = SimpleNamespace(
+    proxy = _Fragments(
         n_rods=int(fragment.max()) + 1 if n_discs else 0, n_spheres=1, pair_i=frag_i,
         pair_j=frag_j, pair_shift=snapshot.pair_shift, cell_lengths=snapshot.cell_lengths,
     )  # fmt: skip

@@ -239,5 +239,5 @@ def run_branches_in_processes(
             _stop_workers(pool)
             raise
     if errors:
-        branch, exc = errors[0]
-        raise ProtocolError(f"branch {branch!r} from A failed: {exc}") from exc
+        failed, error = errors[0]
+        raise ProtocolError(f"branch {failed!r} from A failed: {error}") from error

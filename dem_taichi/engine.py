@@ -104,7 +104,7 @@ def step_count(name: str, value: Any, low: int) -> int:
     if isinstance(value, numbers.Integral):
         count = int(value)
     elif math.isfinite(value) and float(value).is_integer():
-        count = int(value)
+        count = int(float(value))
     else:
         raise ValueError(f"{name} = {value!r}: must be a whole number of steps >= {low}")
     if count < low:

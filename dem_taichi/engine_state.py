@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
-from dem_taichi.config import scene_from_toml, scene_to_toml
+from dem_taichi.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.device_arrays import STATE_ARRAYS
 from dem_taichi.kernels import layout as L
-from dem_taichi.scene import GasState
+from dem_taichi.scene import GasState, RodGeometry
 from dem_taichi.state import convert_neighbour_list, fit_rolling_spring, upgrade_state
 
 __all__ = ["SimulationState"]
@@ -33,13 +34,61 @@ _PARAMETER_INDEX = {
     "local_damping": L.P_ALPHA,
 }
 
+#: (device array, state key) of every state array, in the order of the state dict (a state
+#: array always has its key: DeviceArray checks it).
+_STATE_KEYS: tuple[tuple[str, str], ...] = tuple(
+    (spec.name, spec.state_key) for spec in STATE_ARRAYS if spec.state_key is not None
+)
+
 
 class SimulationState:
     """State, parameters and checkpoints of a simulation (mixed into :class:`Simulation`)."""
 
+    # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
+    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
+    # not named here: engine imports this module.
+    scene: Scene
+    arch: str
+    precision: str
+    execution: str
+    deterministic: bool
+    a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
+    body: RodGeometry
+    physics: Any
+    full_list: bool
+    n_rods: int
+    n_discs: int
+    n_bodies: int
+    capacity: int
+    step: int
+    reference_lengths: np.ndarray
+    _real: type[np.floating]
+    _rates: np.ndarray
+    _stage: str
+    if TYPE_CHECKING:
+        # Simulation's constructor and methods, and SimulationViews' cell lengths
+
+        def __init__(
+            self,
+            scene: Scene,
+            arch: str = "cpu",
+            precision: str = "f64",
+            deterministic: bool = False,
+            execution: str | None = None,
+            initial: GasState | None = None,
+            neighbour_capacity: int | None = None,
+        ) -> None: ...
+
+        def _launch(self, kernel: Any, **scalars: Any) -> None: ...
+
+        def _grow(self, capacity: int) -> None: ...
+
+        @property
+        def cell_lengths(self) -> np.ndarray: ...
+
     def get_state(self) -> dict[str, np.ndarray]:
         """Numpy copies of the full state (see :mod:`dem_taichi.state`)."""
-        state = {spec.state_key: self.a[spec.name].to_numpy() for spec in STATE_ARRAYS}
+        state = {key: self.a[name].to_numpy() for name, key in _STATE_KEYS}
         return state | {
             "reference_lengths": self.reference_lengths.copy(),
             "step": np.array(self.step, dtype=np.int64),
@@ -66,8 +115,8 @@ class SimulationState:
         if capacity != self.capacity:
             self._grow(capacity)
         a = self.a
-        for spec in STATE_ARRAYS:
-            a[spec.name].from_numpy(np.ascontiguousarray(state[spec.state_key]))
+        for name, key in _STATE_KEYS:
+            a[name].from_numpy(np.ascontiguousarray(state[key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
         params = state["params"]
@@ -121,7 +170,7 @@ class SimulationState:
     @classmethod
     def from_checkpoint(
         cls, path: str | Path, arch: str | None = None, precision: str | None = None
-    ) -> SimulationState:
+    ) -> Self:
         """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
         from dem_taichi.io.checkpoint import load_checkpoint
 

@@ -12,14 +12,17 @@ the servo use.
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dem_taichi.bonds import rod_axes, unwrapped_chains
+from dem_taichi.config import Scene
 from dem_taichi.kernels import layout as L
-from dem_taichi.measures import Measures, history_record
+from dem_taichi.measures import BondedMeasures, history_record
 from dem_taichi.network import interacting_entries, mechanical_coordination, network_snapshot
-from dem_taichi.scene import species_parameters
+from dem_taichi.scene import RodGeometry, species_parameters
 from dem_taichi.snapshot import NetworkSnapshot
 
 __all__ = ["SimulationViews"]
@@ -27,6 +30,28 @@ __all__ = ["SimulationViews"]
 
 class SimulationViews:
     """Measures, rods and network of a simulation (mixed into :class:`Simulation`)."""
+
+    # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
+    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
+    # not named here: engine imports this module.
+    scene: Scene
+    a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
+    geometry: RodGeometry
+    body: RodGeometry
+    physics: Any
+    bonded: bool
+    full_list: bool
+    n_rods: int
+    n_bodies: int
+    capacity: int
+    step: int
+    reference_lengths: np.ndarray
+    timings: dict[str, float]
+    _rates: np.ndarray
+    _stage: str
+    if TYPE_CHECKING:
+
+        def _launch(self, kernel: Callable[..., Any], **scalars: Any) -> None: ...
 
     def _measure_sums(self) -> np.ndarray:
         from dem_taichi.kernels.measures import measure_sums
@@ -92,7 +117,7 @@ class SimulationViews:
 
         return HISTORY_VARIABLES + (BONDED_HISTORY_VARIABLES if self.bonded else ())
 
-    def measure(self) -> Measures:
+    def measure(self) -> BondedMeasures:
         """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
         from dem_taichi.io.schema import stage_code
 

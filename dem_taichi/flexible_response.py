@@ -98,7 +98,7 @@ class BondStiffness:
     @classmethod
     def relative(
         cls, k_n: float, diameter: float = 1.0, normal: float = 1.0, shear: float = 1.0,
-        bending: float = 1.0, pre_force: str = "equilibrium",
+        bending: float = 1.0, pre_force: Literal["equilibrium", "none"] = "equilibrium",
     ) -> BondStiffness:  # fmt: skip
         """Bonds from ratios: k_bn = normal k_n, k_bt = shear k_n, κ_b = bending k_n d²."""
         return cls(normal * k_n, shear * k_n, bending * k_n * diameter**2, pre_force)

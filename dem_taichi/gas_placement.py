@@ -111,9 +111,17 @@ def place_rods(
     candidates drawn (three uniform numbers each). The generator is left *after* the numbers
     of the drawn candidates only, as if they had been drawn one by one.
 
-    Raises :class:`PlacementError` when a rod fails ``max_attempts`` candidates in a row.
+    Raises :class:`PlacementError` when a rod fails ``max_attempts`` candidates in a row, a
+    ``TypeError`` for a generator other than PCG64's (``np.random.default_rng``): the rewind
+    counts one step per uniform number, as ``PCG64.advance`` does.
     """
-    start = rng.bit_generator.state
+    bits = rng.bit_generator
+    if not isinstance(bits, np.random.PCG64 | np.random.PCG64DXSM):
+        raise TypeError(
+            f"place_rods needs a PCG64 generator (np.random.default_rng), not "
+            f"{type(bits).__name__}: it rewinds the generator by PCG64.advance"
+        )
+    start = bits.state
     cell = np.array([side, side])
     n_s = len(offsets)
     # two rods clash only if their centroids are within 2 max|o_s| + clearance: rods are found
@@ -167,6 +175,6 @@ def place_rods(
             tree = cKDTree(_wrapped(positions[:placed], side), boxsize=side)
         acceptance = max(len(new) / used, 1e-3)
     # leave the generator after the candidates drawn, not after the whole last batch
-    rng.bit_generator.state = start
-    rng.bit_generator.advance(3 * drawn)
+    bits.state = start
+    bits.advance(3 * drawn)
     return positions, angles, drawn

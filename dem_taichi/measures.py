@@ -81,13 +81,14 @@ def history_record(
     mechanical_coordination: float,
     n_bodies: int | None = None,
     n_bonds: int = 0,
-) -> Measures:
+) -> BondedMeasures:
     """The history record from the measure kernel's ``sums`` (slots ``layout.M_*``), the
     ``stress`` tensor (2, 2), the cell ``lengths`` and ``reference_lengths`` (L0 of the
     strains), the strain ``rates`` of the last chunk, the rod ``angles``, the rod ``geometry``
     and the counters; definitions of every entry in :data:`dem_taichi.io.schema.HISTORY`.
     ``n_bodies`` (default ``n_rods``) and ``n_bonds`` (intact bonds) of bonded rods enter the
-    unbalanced-force ratio: mean body force over mean force of the pairs and bonds."""
+    unbalanced-force ratio: mean body force over mean force of the pairs and bonds. Typed
+    :class:`BondedMeasures`, whose bonded variables the caller adds for bonded rods."""
     area = float(np.prod(lengths))
     p = 0.5 * (stress[0, 0] + stress[1, 1])
     q = stress[1, 1] - stress[0, 0]

@@ -40,8 +40,8 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -55,7 +55,17 @@ from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, Sta
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.servo import StressServo
 
-__all__ = ["ProtocolRunner"]
+__all__ = ["ProbeHook", "ProtocolRunner"]
+
+
+class ProbeHook(Protocol):
+    """What the runner calls at every relaxed path state to be probed, with the run log it
+    records into (``log``: a branch swaps it, :func:`dem_taichi.branches.run_branch_saved`);
+    :class:`dem_taichi.probing.ProbeRecorder` is one."""
+
+    log: RunLog
+
+    def __call__(self, runner: ProtocolRunner, state: RelaxedState, /) -> None: ...
 
 
 class ProtocolRunner:
@@ -76,7 +86,7 @@ class ProtocolRunner:
         probing: ProbingConfig,
         history=None,
         relaxed_writer=None,
-        probe_hook: Callable[[ProtocolRunner, RelaxedState], None] | None = None,
+        probe_hook: ProbeHook | None = None,
         progress: bool = False,
         log: RunLog | None = None,
     ) -> None:
@@ -182,9 +192,10 @@ class ProtocolRunner:
         relaxed: bool,
         iterations: int = 0,
     ) -> RelaxedState:
+        target_xx, target_yy = targets  # (σ_xx, σ_yy), NaN where not servoed
         state = RelaxedState(
-            label, stage, increment, tuple(float(t) for t in targets), measures.copy(), relaxed,
-            iterations,
+            label, stage, increment, (float(target_xx), float(target_yy)), measures.copy(),
+            relaxed, iterations,
         )  # fmt: skip
         log = self.log
         log.path_states.append(state)

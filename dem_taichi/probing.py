@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal, TypeGuard
 
 import numpy as np
 import xarray as xr
@@ -40,6 +41,9 @@ from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import RunLog
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
+
+if TYPE_CHECKING:
+    from dem_taichi.linear_response import LinearResponse
 
 __all__ = [
     "DegradationCurve",
@@ -88,7 +92,7 @@ class ProbeResult:
     increment: int
     measures: Measures
     curves: dict[str, DegradationCurve] = field(default_factory=dict)
-    linear: object | None = None  # dem_taichi.linear_response.LinearResponse
+    linear: LinearResponse | None = None
     dynamic_seconds: float = 0.0
     linear_seconds: float = 0.0
     state_restored_bitwise: bool | None = None
@@ -138,7 +142,7 @@ def dynamic_modulus(
     p0 = sim.measure()["mean_stress"]
     lengths0 = sim.cell_lengths.copy()
     rate = strain_rate_cap(sim, p0, protocol.pressure_tolerance)
-    out = {"stress": [], "strain": [], "relaxed": [], "steps": 0}
+    out: dict[str, Any] = {"stress": [], "strain": [], "relaxed": [], "steps": 0}
     for sign in (1.0, -1.0):
         sim.set_state(base)
         strain = [0.0, 0.0]
@@ -191,11 +195,17 @@ def degradation_curve(
     )  # fmt: skip
 
 
-def linear_probe(sim, sliding_contacts: str = "stuck"):
+def _is_sliding_contacts(name: str) -> TypeGuard[Literal["free", "stuck"]]:
+    return name in ("free", "stuck")
+
+
+def linear_probe(sim, sliding_contacts: str = "stuck") -> LinearResponse:
     """Linear-response stiffness of the current network (no change to the state); rigid or
     bonded rods (:func:`dem_taichi.bonded_response.network_response`)."""
     from dem_taichi.bonded_response import network_response
 
+    if not _is_sliding_contacts(sliding_contacts):  # as network_response checks it
+        raise ValueError(f"sliding_contacts = {sliding_contacts!r}: allowed 'free' or 'stuck'")
     return network_response(sim.snapshot(), sliding_contacts=sliding_contacts)
 
 

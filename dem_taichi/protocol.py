@@ -248,6 +248,7 @@ def run_protocol(
             if saved_a is None:
                 recording.append(sim.measure() | {"stage": "gas"})
                 runner.compress_to_transition()
+                assert runner.state_A is not None  # compress_to_transition ends at A
                 save_stage_a(
                     identity,
                     StageA(
@@ -281,8 +282,8 @@ def run_protocol(
             history.close()
             relaxed.close()
         # stage wall times exclude the probes (timed apart by the recorder)
-        for label, path in log.checkpoints.items():
-            result.files[f"state_{label}"] = path
+        for label, checkpoint in log.checkpoints.items():
+            result.files[f"state_{label}"] = checkpoint
         result.files["history"] = str(out / "history.nc")
         result.files["relaxed_states"] = str(out / "relaxed_states.nc")
         # configurations at the labelled states, taken when they were reached

@@ -44,12 +44,15 @@ import dataclasses
 import os
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dem_taichi.io.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from dem_taichi.resume_codec import EncodingError, decode, encode
+
+if TYPE_CHECKING:
+    from dem_taichi.protocol_records import BranchOutcome
 
 __all__ = [
     "RESUME_DIR",
@@ -286,7 +289,7 @@ def save_branch(run: RunIdentity, index: int, outcome) -> Path:
     return _save(branch_file(run.path, index), header, saved)
 
 
-def load_branches(run: RunIdentity, branches: list[str]) -> dict[str, object]:
+def load_branches(run: RunIdentity, branches: list[str]) -> dict[str, BranchOutcome]:
     """The saved outcomes of ``branches`` (by name) of ``run``, for those whose file exists;
     refuses (:class:`ResumeFileError`) a file that is damaged, not this run's, or of another
     branch."""

@@ -16,11 +16,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["write_figures", "write_report", "findings", "compressibility_slope"]
 
 
-def compressibility_slope(mean_stress: np.ndarray, specific_volume: np.ndarray) -> dict:
+def compressibility_slope(mean_stress: ArrayLike, specific_volume: ArrayLike) -> dict:
     """Least-squares fit ln v = a − λ* ln p over the given states; returns λ*, a, R² and rms.
 
     λ* is the slope of the (ln p, ln v) line (the study's compressibility index, positive for
@@ -80,7 +81,7 @@ def findings(result) -> dict:
         out["unloading_max_relative_p_change"] = float(
             max(abs(s.measures["mean_stress"] - p_c) / p_c for s in cb)
         )
-    ratios = {}
+    ratios: dict[str, list[tuple[str, str, float, float]]] = {}
     for probe in result.probes:
         for method in ("dynamic", "linear"):
             ev, eh = probe.modulus("e_oed_v", method), probe.modulus("e_oed_h", method)

@@ -25,9 +25,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import struct
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = ["EncodingError", "encode", "decode"]
 
@@ -42,7 +45,7 @@ class EncodingError(ValueError):
     """A value that cannot be encoded, or a tree that is not a valid encoding (says where)."""
 
 
-def _known_types() -> dict[str, type]:
+def _known_types() -> dict[str, type[DataclassInstance]]:
     """The dataclasses a resume file may hold, by name: the only classes :func:`decode`
     builds. Imported here, not at module level: the records import this package's modules."""
     from dem_taichi.analysis import Plateau, Transition

@@ -82,7 +82,7 @@ def convert_neighbour_list(
     springs = state["tangential_spring"]
     rolling = state.get("rolling_spring")
     has_rolling = rolling is not None and rolling.shape[0] == len(counts)
-    psi = rolling if has_rolling else np.zeros(entries.shape)
+    psi = rolling if rolling is not None and has_rolling else np.zeros(entries.shape)
     rows: list[list[tuple[int, float, float]]] = [[] for _ in range(len(counts))]
     for i, count in enumerate(counts):
         for k in range(int(count)):

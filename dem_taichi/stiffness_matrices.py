@@ -11,7 +11,7 @@ with them and re-exports these names.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 import scipy.sparse as sparse
@@ -23,6 +23,7 @@ from dem_taichi.snapshot import NetworkSnapshot
 __all__ = [
     "ENGINE_STIFFNESS",
     "NetworkMatrices",
+    "PairGraph",
     "StiffnessVariant",
     "assemble",
     "kept_network",
@@ -335,7 +336,26 @@ def assemble(k_pair, j_sigma, branch, body_i, body_j, n_bodies: int, area: float
     return hessian, gamma, d_q, d_g
 
 
-def kept_network(snapshot: NetworkSnapshot, active: np.ndarray, prune_rattlers: bool = True):
+class PairGraph(Protocol):
+    """What :func:`kept_network` reads of a network: ``n_rods`` bodies of ``n_spheres`` discs
+    and the pairs of discs ``pair_i``, ``pair_j`` with their image shifts ``pair_shift`` in the
+    cell ``cell_lengths`` (a :class:`NetworkSnapshot`, or the fragments of bonded rods)."""
+
+    @property
+    def n_rods(self) -> int: ...
+    @property
+    def n_spheres(self) -> int: ...
+    @property
+    def pair_i(self) -> np.ndarray: ...
+    @property
+    def pair_j(self) -> np.ndarray: ...
+    @property
+    def pair_shift(self) -> np.ndarray: ...
+    @property
+    def cell_lengths(self) -> np.ndarray: ...
+
+
+def kept_network(snapshot: PairGraph, active: np.ndarray, prune_rattlers: bool = True):
     """Rods kept in the linear response, the pairs used, and the cluster label of every rod.
 
     With ``prune_rattlers``: rods with at most one active pair are dropped iteratively, then

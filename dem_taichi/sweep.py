@@ -68,7 +68,10 @@ import argparse
 import contextlib
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 from dem_taichi.sweep_client import (  # noqa: F401 - the public names of the sweep
     INDEX_CSV,
@@ -159,7 +162,7 @@ class _Stop:
 
     def __init__(self) -> None:
         self.received: int | None = None
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, Callable[[int, FrameType | None], Any] | int | None] = {}
 
     def _handle(self, signum: int, frame) -> None:
         if self.received is None:

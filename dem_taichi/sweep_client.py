@@ -114,7 +114,7 @@ def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], li
         folder = checked_member_dir(out, m.name)
         record = read_json(folder / MEMBER_RECORD)
         status = None if record is None else record.get("status")
-        if status == "done" and (folder / "summary.json").exists():
+        if record is not None and status == "done" and (folder / "summary.json").exists():
             if record.get("scene_sha256") == m.scene_sha256:
                 done.append(m.name)
                 continue
@@ -127,7 +127,7 @@ def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], li
             raise SweepError(
                 f"{folder} holds files not written by a sweep: move them or use a new --out"
             )
-        elif status == "failed":
+        elif record is not None and status == "failed":
             why[m.name] = f"failed before ({record.get('error', '?')}); {_restart(folder, m)}"
         elif status is not None:
             why[m.name] = f"unfinished; {_restart(folder, m)}"

@@ -99,7 +99,8 @@ def _finished_members(out: Path) -> tuple[dict, list[dict], list[str]]:
     """The sweep record, its finished members and the names of the others; each member's
     folder checked to lie in ``out/members`` (a ``sweep.json`` naming ``..`` is refused)."""
     sweep = json.loads((out / "sweep.json").read_text())
-    finished, other = [], []
+    finished: list[dict] = []
+    other: list[dict] = []
     for m in sweep["members"]:
         folder = checked_member_dir(out, m["name"])
         try:

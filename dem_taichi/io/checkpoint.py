@@ -34,6 +34,8 @@ FORMAT_VERSION = 1
 META_KEY = "__meta__"
 CHECKPOINT_PREFIX = "checkpoint_"
 CHECKPOINT_SUFFIX = ".npz"
+#: Keywords of np.savez itself, which it would take for its own, not as arrays.
+_SAVEZ_KEYWORDS = ("file", "allow_pickle")
 _STEP_PATTERN = re.compile(rf"^{CHECKPOINT_PREFIX}(\d+){re.escape(CHECKPOINT_SUFFIX)}$")
 
 
@@ -51,9 +53,11 @@ def checkpoint_path(directory: str | os.PathLike[str], step: int) -> Path:
 def _check_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     checked: dict[str, np.ndarray] = {}
     for name, value in arrays.items():
-        if not isinstance(name, str) or not name.isidentifier() or name == META_KEY:
+        reserved = (META_KEY, *_SAVEZ_KEYWORDS)
+        if not isinstance(name, str) or not name.isidentifier() or name in reserved:
             raise ValueError(
-                f"array name {name!r} not allowed: use an identifier other than {META_KEY!r}"
+                f"array name {name!r} not allowed: use an identifier other than "
+                + ", ".join(repr(r) for r in reserved)
             )
         array = np.asarray(value)
         if array.dtype.kind not in "biufcUS":
@@ -109,9 +113,12 @@ def save_checkpoint(
         dir=target.parent, prefix=f".{target.name}.", suffix=".tmp"
     )
     temp = Path(temp_name)
+    # Any: numpy's stub would take the arrays for savez's own keyword allow_pickle (never one
+    # of them: _check_arrays refuses its keywords)
+    members: dict[str, Any] = {**checked, META_KEY: np.array(meta_text)}
     try:
         with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, **checked, **{META_KEY: np.array(meta_text)})
+            np.savez(stream, **members)
             stream.flush()
             os.fsync(stream.fileno())
         mask = os.umask(0)  # mkstemp makes owner-only files; a checkpoint is an ordinary file

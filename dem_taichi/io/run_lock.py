@@ -22,6 +22,7 @@ import tempfile
 import uuid
 from collections.abc import Callable
 from pathlib import Path
+from typing import Self
 
 __all__ = [
     "RUN_LOCK",
@@ -147,7 +148,7 @@ class DirectoryLock:
         return False
 
     @classmethod
-    def acquire(cls, folder: Path, command: str) -> DirectoryLock:
+    def acquire(cls, folder: Path, command: str) -> Self:
         """Take ``folder/run.lock``: refused (:class:`RunLockedError`) when a live process holds
         it; a stale one (dead PID on this host) is taken over with a one-line note."""
         path = folder / RUN_LOCK

@@ -131,7 +131,7 @@ def write_snapshot(
     cells = [("vertex", np.arange(points.shape[0], dtype=np.int64)[:, None])]
     path.parent.mkdir(parents=True, exist_ok=True)
     meshio.Mesh(points, cells, point_data=data).write(path, file_format="vtu")
-    field_data = {
+    field_data: dict[str, np.ndarray] = {
         "stage_code": np.array([stage_code(stage)], dtype=np.int32),
         "step": np.array([int(step)], dtype=np.int64),
         "time": np.array([float(time)]),
@@ -156,6 +156,8 @@ _VTK_TYPES = {"i": {4: "Int32", 8: "Int64"}, "f": {8: "Float64"}}
 def _add_field_data(path: Path, field_data: Mapping[str, np.ndarray]) -> None:
     tree = ET.parse(path)
     grid = tree.getroot().find("UnstructuredGrid")
+    if grid is None:  # meshio writes one
+        raise ValueError(f"{path}: no UnstructuredGrid element")
     block = ET.Element("FieldData")
     for name, values in field_data.items():
         values = np.atleast_2d(values)
@@ -202,4 +204,12 @@ def read_pvd(path: str | Path) -> list[tuple[str, Path]]:
     """The (name, absolute file path) entries of a ``.pvd`` written by :func:`write_pvd`."""
     path = Path(path)
     entries = ET.parse(path).getroot().find("Collection")
-    return [(e.get("name", ""), path.parent / e.get("file")) for e in entries]
+    if entries is None:
+        raise ValueError(f"{path}: not a ParaView collection (no Collection element)")
+    listed = []
+    for entry in entries:
+        file = entry.get("file")
+        if file is None:
+            raise ValueError(f"{path}: a DataSet without a file")
+        listed.append((entry.get("name", ""), path.parent / file))
+    return listed

@@ -30,7 +30,7 @@ import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, Final, Literal, TypeGuard
 
 import netCDF4
 import numpy as np
@@ -47,10 +47,11 @@ from .schema import (
 )
 
 #: Format of whole datasets (probes, configurations).
-FILE_FORMAT = "NETCDF4"
+FILE_FORMAT: Final = "NETCDF4"
+HistoryFormat = Literal["NETCDF3_64BIT_DATA", "NETCDF4"]
 #: Default format of the history (see the module docstring for why not HDF5).
-HISTORY_FILE_FORMAT = "NETCDF3_64BIT_DATA"
-HISTORY_FILE_FORMATS = ("NETCDF3_64BIT_DATA", "NETCDF4")
+HISTORY_FILE_FORMAT: Final = "NETCDF3_64BIT_DATA"
+HISTORY_FILE_FORMATS: tuple[HistoryFormat, ...] = ("NETCDF3_64BIT_DATA", "NETCDF4")
 #: Records per HDF5 chunk along ``time`` (``NETCDF4`` only).
 DEFAULT_CHUNK_RECORDS = 256
 
@@ -130,11 +131,15 @@ def _full_disk_reported(path: Path) -> Iterator[None]:
         raise full from error
 
 
+def _is_history_format(name: str) -> TypeGuard[HistoryFormat]:
+    return name in HISTORY_FILE_FORMATS
+
+
 def _create_history_file(
     path: Path,
     variables: Mapping[str, Variable],
     attrs: Mapping[str, Any],
-    file_format: str,
+    file_format: HistoryFormat,
     chunk_records: int,
 ) -> netCDF4.Dataset:
     with _full_disk_reported(path):
@@ -249,7 +254,7 @@ class HistoryWriter:
         file_format: str = HISTORY_FILE_FORMAT,
         chunk_records: int = DEFAULT_CHUNK_RECORDS,
     ) -> None:
-        if file_format not in HISTORY_FILE_FORMATS:
+        if not _is_history_format(file_format):
             raise ValueError(
                 f"file_format {file_format!r} not allowed; use one of {HISTORY_FILE_FORMATS}"
             )
@@ -281,7 +286,7 @@ class HistoryWriter:
         if not self.path.exists():
             raise FileNotFoundError(f"cannot resume: history file {self.path} does not exist")
         arrays, old_attrs, file_format = _read_records(self.path)
-        if file_format not in HISTORY_FILE_FORMATS:
+        if not _is_history_format(file_format):
             raise ValueError(
                 f"cannot resume {self.path}: format {file_format}, not one of "
                 f"{HISTORY_FILE_FORMATS}"

@@ -165,6 +165,8 @@ def test_a_newer_format_version_is_refused(tmp_path, monkeypatch):
         ({"x": np.array([object()])}, {}, TypeError, "no pickles"),
         ({"__meta__": np.zeros(1)}, {}, ValueError, "not allowed"),
         ({"a b": np.zeros(1)}, {}, ValueError, "not allowed"),
+        ({"allow_pickle": np.zeros(1)}, {}, ValueError, "not allowed"),  # np.savez's keywords
+        ({"file": np.zeros(1)}, {}, ValueError, "not allowed"),
         ({"x": np.zeros(1)}, {"bad": object()}, TypeError, "JSON"),
     ],
 )
