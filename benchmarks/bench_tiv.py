@@ -109,7 +109,7 @@ def measure(quick: bool) -> list[tuple[str, float, str]]:
         for form in ("A", "B"):
             options = ModelOptions(anisotropy=form)
             repeat = max(1, 20_000 // batch)
-            t = _cpu(lambda o=options, a=(eps, v, beta): stiffness(*a, TABLE1, o), repeat)
+            t = _cpu(lambda o=options, e=eps, v=v, b=beta: stiffness(e, v, b, TABLE1, o), repeat)
             rows.append((f"elastic stiffness D, batch {batch}, form {form}", batch / t,
                          "evaluations/s"))  # fmt: skip
     rows.extend(_measure_batch(quick))

@@ -86,7 +86,7 @@ def _interval(values: np.ndarray) -> float:
 
 
 def summarise(out: Path, stiffness: float | None) -> str:
-    runs = {"rigid": [], "bonded": []}
+    runs: dict[str, list[dict[str, dict[str, float]]]] = {"rigid": [], "bonded": []}
     for folder in sorted(out.glob("*_seed*")):
         model = folder.name.split("_seed")[0]
         if (folder / "summary.json").exists() and model in runs:

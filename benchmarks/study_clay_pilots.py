@@ -52,7 +52,10 @@ def _last(values) -> float:
 
 def run_row(folder: Path) -> dict:
     """The findings of one run folder, or ``converged = False`` when it has no summary."""
-    cell, seed = re.fullmatch(r"(.+)_s(\d+)", folder.name).groups()
+    named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
+    if named is None:
+        raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
+    cell, seed = named.groups()
     row: dict = {"cell": cell, "seed": int(seed), "converged": False}
     if not (folder / "summary.json").exists():
         return row
