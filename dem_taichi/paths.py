@@ -41,7 +41,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -54,6 +54,9 @@ from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.servo import StressServo
+
+if TYPE_CHECKING:
+    from dem_taichi.engine import Simulation
 
 __all__ = ["ProbeHook", "ProtocolRunner"]
 
@@ -81,7 +84,7 @@ class ProtocolRunner:
 
     def __init__(
         self,
-        sim,
+        sim: Simulation,
         config: ProtocolConfig,
         probing: ProbingConfig,
         history=None,

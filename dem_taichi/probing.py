@@ -43,6 +43,7 @@ from dem_taichi.protocol_records import RunLog
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
 
 if TYPE_CHECKING:
+    from dem_taichi.engine import Simulation
     from dem_taichi.linear_response import LinearResponse
 
 __all__ = [
@@ -108,7 +109,9 @@ class ProbeResult:
         return curve.plateau.modulus if curve is not None else math.nan
 
 
-def _relax_strict(sim, config: ProbingConfig, check_steps: int) -> tuple[Measures, bool, int]:
+def _relax_strict(
+    sim: Simulation, config: ProbingConfig, check_steps: int
+) -> tuple[Measures, bool, int]:
     return relax(
         sim,
         "probe",
@@ -120,7 +123,7 @@ def _relax_strict(sim, config: ProbingConfig, check_steps: int) -> tuple[Measure
 
 
 def dynamic_modulus(
-    sim,
+    sim: Simulation,
     axis: str,
     amplitude: float,
     config: ProbingConfig,
@@ -161,7 +164,7 @@ def dynamic_modulus(
 
 
 def degradation_curve(
-    sim,
+    sim: Simulation,
     axis: str,
     config: ProbingConfig,
     protocol: ProtocolConfig,
@@ -199,7 +202,7 @@ def _is_sliding_contacts(name: str) -> TypeGuard[Literal["free", "stuck"]]:
     return name in ("free", "stuck")
 
 
-def linear_probe(sim, sliding_contacts: str = "stuck") -> LinearResponse:
+def linear_probe(sim: Simulation, sliding_contacts: str = "stuck") -> LinearResponse:
     """Linear-response stiffness of the current network (no change to the state); rigid or
     bonded rods (:func:`dem_taichi.bonded_response.network_response`)."""
     from dem_taichi.bonded_response import network_response
@@ -210,7 +213,7 @@ def linear_probe(sim, sliding_contacts: str = "stuck") -> LinearResponse:
 
 
 def probe_state(
-    sim,
+    sim: Simulation,
     config: ProbingConfig,
     protocol: ProtocolConfig,
     label: str = "",

@@ -18,13 +18,15 @@ import math
 from collections.abc import Callable
 from typing import Any, cast
 
-from dem_taichi.engine import CellControl
+from dem_taichi.engine import CellControl, Simulation
 from dem_taichi.measures import Measures
 
 __all__ = ["strain_rate_cap", "relax", "apply_strain", "hold", "rescale_speed"]
 
 
-def strain_rate_cap(sim, mean_stress: float, floor_stress: float, safety: float = 1.0) -> float:
+def strain_rate_cap(
+    sim: Simulation, mean_stress: float, floor_stress: float, safety: float = 1.0
+) -> float:
     """Largest strain rate keeping I = ε̇ d sqrt(ρ/p) ≤ safety · I_max ([control]
     inertial_number_max).
 
@@ -42,7 +44,7 @@ def _control(stage: str, rate_x: float, rate_y: float) -> CellControl:
 
 
 def relax(
-    sim,
+    sim: Simulation,
     stage: str,
     unbalanced_force: float,
     kinetic_energy_per_rod: float,
@@ -74,7 +76,7 @@ def relax(
 
 
 def apply_strain(
-    sim,
+    sim: Simulation,
     strain: tuple[float, float],
     stage: str,
     max_rate: float,
@@ -95,13 +97,13 @@ def apply_strain(
     return sim.run(n, control, output_every=output_every or n, writer=writer)
 
 
-def hold(sim, stage: str, n_steps: int) -> Measures:
+def hold(sim: Simulation, stage: str, n_steps: int) -> Measures:
     """Run ``n_steps`` steps at fixed cell (strain rates 0) under the stage label ``stage``;
     returns the measures at the end (no history records: the caller writes them)."""
     return sim.run(n_steps, _control(stage, 0.0, 0.0), output_every=n_steps)
 
 
-def rescale_speed(sim, speed: float) -> float:
+def rescale_speed(sim: Simulation, speed: float) -> float:
     """Scale every body's velocity and angular velocity by s = ``speed`` / (rms velocity
     component, sqrt(<v_x² + v_y²>/2), the measure of ``[particles] initial_speed``) so that it
     becomes ``speed``; returns the rms velocity component before (rods, or the discs of bonded

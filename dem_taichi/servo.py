@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, StageRecord
 from dem_taichi.quasistatic import _control, strain_rate_cap
+
+if TYPE_CHECKING:
+    from dem_taichi.engine import Simulation
 
 __all__ = [
     "JACOBIAN_DIGITS",
@@ -153,7 +157,7 @@ class SecantStiffness:
         return self.ratio
 
 
-def initial_jacobian(sim, pressure_tolerance: float) -> np.ndarray:
+def initial_jacobian(sim: Simulation, pressure_tolerance: float) -> np.ndarray:
     """dσ/dε (2×2, axial part) of the relaxed network from the linear-response probe, rounded
     to ``JACOBIAN_DIGITS`` significant digits (module docstring: portable trajectories)."""
     from dem_taichi.bonded_response import network_response
@@ -252,7 +256,7 @@ class StressServo:
 
     def __init__(
         self,
-        sim,
+        sim: Simulation,
         config: ProtocolConfig,
         relax: Callable[[str], tuple[Measures, bool]],
         output: Callable[[Measures, int], None],
