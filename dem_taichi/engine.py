@@ -11,10 +11,11 @@ Public API
     Advances ``n_steps`` time steps under a :class:`CellControl` (default: the cell held fixed);
     ``writer`` (e.g. :class:`dem_taichi.io.HistoryWriter`) gets ``sim.measure()`` every
     ``output_every`` steps and at the end; returns the last measures
-    (:class:`dem_taichi.measures.Measures`).
-``sim.measure() -> Measures``
+    (:class:`dem_taichi.measures.BondedMeasures`).
+``sim.measure() -> BondedMeasures``
     The history variables of ``dem_taichi.io.schema`` (stress, p, q, v, fabric, Z, energies...),
-    a typed dict (:class:`dem_taichi.measures.Measures`).
+    a typed dict (:class:`dem_taichi.measures.Measures`, with the bonded variables for bonded
+    rods: :class:`dem_taichi.measures.BondedMeasures`).
 ``sim.snapshot() -> NetworkSnapshot``
     The interacting network for the linear-response probes.
 ``sim.get_state() / sim.set_state(state)``
@@ -73,7 +74,7 @@ from dem_taichi.engine_state import SimulationState
 from dem_taichi.engine_views import SimulationViews
 from dem_taichi.failures import BlowUpError, CapacityError, blowup_error, runaway_kinetic_energy
 from dem_taichi.kernels import layout as L
-from dem_taichi.measures import Measures
+from dem_taichi.measures import BondedMeasures, Measures
 from dem_taichi.runtime import ensure_runtime
 from dem_taichi.scene import (
     GasState,
@@ -472,7 +473,7 @@ class Simulation(SimulationViews, SimulationState):
         writer: Any = None,
         progress: bool = False,
         callback: Callable[[Simulation, Measures], None] | None = None,
-    ) -> Measures:
+    ) -> BondedMeasures:
         """Advance ``n_steps`` steps; returns the measures at the end (see module docstring).
 
         ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
@@ -503,7 +504,7 @@ class Simulation(SimulationViews, SimulationState):
             from tqdm import tqdm
 
             bar = tqdm(total=n_steps, unit="step", desc=control.stage, smoothing=0.1)
-        measures: Measures | None = None
+        measures: BondedMeasures | None = None
         done = 0
         next_output = output_every
         try:
