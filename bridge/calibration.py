@@ -499,11 +499,11 @@ def calibrate(
 def _check_identifiable(built: Mapping[str, _Stage], options: CalibrationOptions) -> None:
     """Fail early, with advice, where the data cannot fix a free parameter."""
     elastic = built.get("elastic")
-    if elastic is None:
+    if not isinstance(elastic, _Elastic):  # None: no elastic stage
         return
     free = options.free("elastic")
-    names = {n for _, n, *_ in elastic.data}  # type: ignore[attr-defined]
-    paths = {p for p, *_ in elastic.data}  # type: ignore[attr-defined]
+    names = {n for _, n, *_ in elastic.data}
+    paths = {p for p, *_ in elastic.data}
     if "k" in free and "g" in free and "e_cross" not in names:
         raise CalibrationError(
             "stage elastic: with only constrained moduli E_oed = K + 4G/3 the data cannot "

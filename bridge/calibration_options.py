@@ -166,7 +166,8 @@ class CalibrationOptions:
         return self.initial.replace(p_r=float(self.reference_pressure))
 
     def bound(self, symbol: str) -> tuple[float, float]:
-        return tuple(self.bounds.get(symbol, DEFAULT_BOUNDS[symbol]))  # type: ignore[return-value]
+        bounds = self.bounds.get(symbol, DEFAULT_BOUNDS[symbol])  # a list, from a file
+        return (bounds[0], bounds[1])
 
     def scale(self, key: str) -> float:
         return float(self.scales.get(key, DEFAULT_SCALES[key]))

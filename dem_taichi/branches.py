@@ -78,9 +78,10 @@ def run_branch_on(runner: ProtocolRunner, branch: str) -> None:
 class _RecordList(list):
     """Stands in for a :class:`HistoryWriter` in a branch process: keeps the records."""
 
+    # the record's index, as HistoryWriter.append returns it (list.append returns None)
     def append(self, frame: dict) -> int:  # type: ignore[override]
         super().append(dict(frame))
-        return len(self)
+        return len(self) - 1
 
 
 def run_branch(
