@@ -346,9 +346,7 @@ def test_fenced_blocks_are_found():
 
 
 #: pages whose examples take minutes, run by ``make test-slow`` only: page -> why
-SLOW_EXAMPLE_PAGES = {
-    "README.md": "runs the smoke scene's whole protocol (run_protocol): 1-3 min on 2 cores",
-}
+SLOW_EXAMPLE_PAGES: dict[str, str] = {}
 
 
 def _example_params() -> list:
