@@ -61,6 +61,24 @@ if TYPE_CHECKING:
 __all__ = ["ProbeHook", "ProtocolRunner"]
 
 
+def k0_step_target(
+    stress_xx: float, stress_yy: float, mean_stress: float, ratio: float, floor: float
+) -> tuple[float, float]:
+    """The next σ_yy target of the K0 ladder and the current K0 = σ_xx/σ_yy (force/length, 1).
+
+    The ladder multiplies the current σ_yy by ``ratio`` (> 1). On a loose, aggregated sample the
+    stress at A can be far from isotropic, with σ_yy near zero or negative while p > 0 (the
+    network carries σ_xx only): a ladder from such a σ_yy targets a stress the sample cannot
+    hold (a tensile or vanishing σ_yy, refused by the servo's relative tolerance after 2,000,000
+    steps), and K0 from it is meaningless. Below ``floor`` (the A threshold, the stress at
+    which the sample counts as solid) the ladder starts from max(p, ``floor``) instead and K0
+    is taken as 1. Above it (every state of the built-in scenes) the ladder is unchanged.
+    """
+    if stress_yy >= floor:
+        return stress_yy * ratio, stress_xx / stress_yy
+    return max(mean_stress, floor) * ratio, 1.0
+
+
 class ProbeHook(Protocol):
     """What the runner calls at every relaxed path state to be probed, with the run log it
     records into (``log``: a branch swaps it, :func:`dem_taichi.branches.run_branch_saved`);
@@ -460,13 +478,15 @@ class ProtocolRunner:
         self._check_start(p_a)
         n = self.config.path_increments
         ratio = (p_end / p_a) ** (1.0 / n)
+        floor = self.config.transition_pressure_tolerance(self.sim.scene)
         progress = self._begin_stage(stage, n)
         state = None
         k = 0
         while True:
             k += 1
-            s_yy = measures["stress_yy"] * ratio
-            k0 = measures["stress_xx"] / measures["stress_yy"]
+            s_yy, k0 = k0_step_target(
+                measures["stress_xx"], measures["stress_yy"], measures["mean_stress"], ratio, floor
+            )
             last = 0.5 * s_yy * (1.0 + k0) >= p_end * (1 - 1e-9) or k >= 4 * n
             if last:  # the final target is on p itself
                 weights, targets = np.array([[0.5, 0.5]]), np.array([p_end])
