@@ -34,10 +34,11 @@ Summary of a run (from ``summary.json``, ``relaxed_states.nc`` and ``probes.nc``
 deviator β_yy − β_xx at A, C, B′; K0 = σ_xx/σ_yy at C; E_oed,v, E_oed,h and E_h/E_v of the
 linear-response probes at every probed K0 state, at B, at B′ and on the isotropic path (min–max:
 the control); λ* = −d ln v/d ln p fitted on A + A→B and on A + A→C
-(:func:`dem_taichi.report.compressibility_slope`); the p-exponent of E_oed,v along A→B (slope of
-ln E_oed,v against ln p over the A→B probes, A excluded: A sits at the jamming transition; also
-over p ≥ 10 kPa only); E_oed,v/p at B, and E_oed,v/p and E_h/E_v interpolated (in ln p) at
-100 kPa on A→B and A→C (the same as at B and C except for ``k0long``, whose B and C are at 700).
+(:func:`dem_taichi.analysis.compressibility_slope`); the p-exponent of E_oed,v along A→B
+(:func:`dem_taichi.analysis.power_law_exponent`, slope of ln E_oed,v against ln p over the A→B
+probes, A excluded: A sits at the jamming transition; also over p ≥ 10 kPa only); E_oed,v/p at
+B, and E_oed,v/p and E_h/E_v interpolated (in ln p) at 100 kPa on A→B and A→C (the same as at
+B and C except for ``k0long``, whose B and C are at 700).
 
 Outputs: ``benchmarks/results/stiffness_anisotropy_full_paths.csv`` (one row per run) and
 ``.md`` (per variant: mean ± 95 % Student-t interval over seeds, n − 1 dof, next to ``base``;
@@ -64,10 +65,15 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from dem_taichi.analysis import (
+    compressibility_slope,
+    modulus_over_p_at,
+    power_law_exponent,
+    stiffness_ratio,
+)
 from dem_taichi.config import builtin_scene_path, scene_from_toml
+from dem_taichi.findings import mean_interval, path_arrays, probe_arrays
 from dem_taichi.io import open_history, open_probes
-from dem_taichi.io.schema import stage_code
-from dem_taichi.report import compressibility_slope
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -314,33 +320,27 @@ def _interp_log(p: np.ndarray, y: np.ndarray, at: float) -> float:
     return float(np.exp(np.interp(math.log(at), np.log(p[order]), np.log(y[order]))))
 
 
-def _exponent(p: np.ndarray, e: np.ndarray) -> float:
-    ok = np.isfinite(p) & np.isfinite(e) & (p > 0) & (e > 0)
-    if ok.sum() < 3:
-        return math.nan
-    return float(np.polyfit(np.log(p[ok]), np.log(e[ok]), 1)[0])
-
-
 def _series(values) -> str:
     return ";".join(f"{x:.4g}" for x in values)
 
 
 def summarise_run(folder: Path) -> dict:
-    """Numbers of one finished run (see the module docstring)."""
+    """Numbers of one finished run (see the module docstring). Every finding is computed by the
+    functions of :mod:`dem_taichi.analysis` (the ones the run's report and
+    :func:`dem_taichi.findings.run_findings` use), over the arrays of the run's files."""
     base = _run_row(folder)  # v, fabric at A and C, K0 at C, λ* on A + A→B, wall time
     summary = json.loads((folder / "summary.json").read_text())
-    relaxed = open_history(folder / "relaxed_states.nc")
-    probes = open_probes(folder / "probes.nc")
-    states = summary["states"]
+    states = path_arrays(summary, open_history(folder / "relaxed_states.nc"))
+    probes_file = open_probes(folder / "probes.nc")
+    probes = probe_arrays(probes_file)
+    fabric = probes_file["fabric_deviator"].values
     scale = float(summary.get("stress_scale_kpa", 1.0))
 
-    path = probes["path"].values.astype(str)
-    label = probes["state_label"].values.astype(str)
-    p = probes["mean_stress"].values * scale
-    ev = probes["e_oed_v_linear"].values * scale
-    eh = probes["e_oed_h_linear"].values * scale
-    fab = probes["fabric_deviator"].values
-    ratio = eh / ev
+    path, label = probes.path, probes.label
+    p = probes.mean_stress * scale
+    ev = probes.e_oed_v * scale
+    eh = probes.e_oed_h * scale
+    ratio = stiffness_ratio(probes.e_oed_h, probes.e_oed_v)
 
     def at(lab: str) -> int:
         idx = np.flatnonzero(label == lab)
@@ -349,15 +349,11 @@ def summarise_run(folder: Path) -> dict:
         return int(idx[0])
 
     iB, iBp, iC, iA = at("B"), at("B'"), at("C"), at("A")
-    iso = path == "A_to_B"
+    iso = path == "A_to_B"  # A excluded (module docstring)
     k0 = path == "A_to_C"
-    k0_order = np.flatnonzero(k0)[np.argsort(p[k0])]
-
-    stage = relaxed["stage"].values
-    on_k0 = stage == stage_code("A_to_C")
+    k0_order = probes.along_k0()
     fit_k0 = compressibility_slope(
-        np.r_[states["A"]["mean_stress"], relaxed["mean_stress"].values[on_k0]],
-        np.r_[states["A"]["specific_volume"], relaxed["specific_volume"].values[on_k0]],
+        states.from_a("A_to_C", "mean_stress"), states.from_a("A_to_C", "specific_volume")
     )
     iso_p10 = iso & (p >= 10.0)
 
@@ -377,14 +373,14 @@ def summarise_run(folder: Path) -> dict:
         "v_A": base["v_A"],
         "v_B": base["v_B"],
         "v_C": base["v_C"],
-        "v_Bp": states["B'"]["specific_volume"],
-        "p_B": states["B"]["mean_stress"] * scale,
-        "p_C": states["C"]["mean_stress"] * scale,
-        "sigma_v_C": states["C"]["stress_yy"] * scale,
+        "v_Bp": states.at("B'", "specific_volume"),
+        "p_B": states.at("B", "mean_stress") * scale,
+        "p_C": states.at("C", "mean_stress") * scale,
+        "sigma_v_C": states.at("C", "stress_yy") * scale,
         "fabric_noise": base["noise"],
         "fabric_A": base["fabric_A"],
         "fabric_C": base["fabric_C"],
-        "fabric_Bp": states["B'"]["fabric_deviator"],
+        "fabric_Bp": states.at("B'", "fabric_deviator"),
         "fabric_iso_max_abs": base["iso_fabric_max"],
         "k0_C": base["k0_C"],
         "ev_A": ev[iA],
@@ -409,20 +405,20 @@ def summarise_run(folder: Path) -> dict:
         else math.nan,
         "ratio_k0_max": float(np.max(ratio[k0])),
         "ratio_k0_at_p100": _interp_log(p[k0], ratio[k0], 100.0),
-        "ev_over_p_B": ev[iB] / p[iB],
+        "ev_over_p_B": modulus_over_p_at(probes, "B"),
         "ev_over_p_iso_at_p100": _interp_log(p[iso], ev[iso], 100.0) / 100.0,
         "lambda_star_iso": base["lambda_star"],
         "lambda_star_iso_r2": base["r2"],
         "lambda_star_k0": fit_k0["lambda_star"],
         "lambda_star_k0_r2": fit_k0["r2"],
-        "ev_exponent_iso": _exponent(p[iso], ev[iso]),
-        "ev_exponent_iso_p10": _exponent(p[iso_p10], ev[iso_p10]),
-        "eh_exponent_iso": _exponent(p[iso], eh[iso]),
+        "ev_exponent_iso": power_law_exponent(p[iso], ev[iso]),
+        "ev_exponent_iso_p10": power_law_exponent(p[iso_p10], ev[iso_p10]),
+        "eh_exponent_iso": power_law_exponent(p[iso], eh[iso]),
         "k0_p_series": _series(p[k0_order]),
         "k0_ratio_series": _series(ratio[k0_order]),
         "k0_ev_series": _series(ev[k0_order]),
         "k0_eh_series": _series(eh[k0_order]),
-        "k0_fabric_series": _series(fab[k0_order]),
+        "k0_fabric_series": _series(fabric[k0_order]),
         "iso_p_series": _series(p[iso][np.argsort(p[iso])]),
         "iso_ratio_series": _series(ratio[iso][np.argsort(p[iso])]),
     }
@@ -444,18 +440,6 @@ def finished_runs(root: Path) -> list[dict]:
     order = {m: k for k, m in enumerate(member_name(*m) for m in ORDER)}
     rows.sort(key=lambda r: (list(VARIANTS).index(r["variant"]), r["seed"], order.get(r["run"], 0)))
     return rows
-
-
-def mean_interval(values) -> tuple[float, float, int]:
-    """Mean, half-width of the 95 % Student-t interval (n − 1 dof; NaN for n < 2), n."""
-    x = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
-    n = x.size
-    if n == 0:
-        return math.nan, math.nan, 0
-    if n == 1:
-        return float(x[0]), math.nan, 1
-    half = float(stats.t.ppf(0.975, n - 1) * x.std(ddof=1) / math.sqrt(n))
-    return float(x.mean()), half, n
 
 
 def _fmt(m: float, h: float, digits: int = 3, signed: bool = False) -> str:

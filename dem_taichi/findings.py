@@ -29,9 +29,18 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from dem_taichi.analysis import fabric_sampling_noise
+from dem_taichi.analysis import (
+    PathArrays,
+    ProbeArrays,
+    compressibility_slope,
+    fabric_isotropy,
+    modulus_over_p_at,
+    power_law_exponent,
+    stiffness_ratio,
+    stress_ratio_at,
+)
 from dem_taichi.io import open_history, open_probes
-from dem_taichi.io.schema import stage_code
+from dem_taichi.io.schema import STAGE_LABELS
 from dem_taichi.mapped_window import (
     STUDY_REFERENCE_KPA,
     STUDY_WINDOW_KPA,
@@ -43,10 +52,11 @@ from dem_taichi.mapped_window import (
     stress_scale_from_stiffness,
     windowed_compressibility,
 )
-from dem_taichi.report import compressibility_slope
 
 __all__ = [
     "STATE_MEASURES",
+    "path_arrays",
+    "probe_arrays",
     "run_findings",
     "state_findings",
     "mean_interval",
@@ -68,58 +78,72 @@ STATE_MEASURES = (
 _NAN = float("nan")
 
 
-def _state(states: dict, label: str, key: str) -> float:
-    return float(states[label][key]) if label in states else _NAN
-
-
 def _probes(folder: Path):
     path = folder / "probes.nc"
     return open_probes(path) if path.exists() else None
+
+
+def path_arrays(summary: dict, relaxed) -> PathArrays:
+    """The relaxed states of a run folder as :class:`~dem_taichi.analysis.PathArrays`: the
+    labelled states of ``summary.json`` and the records of ``relaxed_states.nc`` (``relaxed``,
+    its dataset), stage codes read back to their names ("" for a code the schema lacks)."""
+    stage = np.array([STAGE_LABELS.get(int(c), "") for c in relaxed["stage"].values], dtype=str)
+    measures = {
+        name: np.asarray(relaxed[name].values, dtype=float)
+        for name in relaxed.data_vars
+        if name != "stage" and relaxed[name].dims == ("time",)
+    }
+    return PathArrays(summary.get("states", {}), stage, measures)
+
+
+def probe_arrays(probes) -> ProbeArrays:
+    """The probes of a run folder (``probes.nc``, its dataset, or None) as
+    :class:`~dem_taichi.analysis.ProbeArrays`."""
+    if probes is None or not probes.sizes.get("probe", 0):
+        return ProbeArrays.empty()
+    n = probes.sizes["probe"]
+
+    def values(name: str) -> np.ndarray:  # NaN for a modulus the file does not hold
+        return np.asarray(probes[name].values, dtype=float) if name in probes else np.full(n, _NAN)
+
+    return ProbeArrays(
+        label=probes["state_label"].values.astype(str),
+        path=probes["path"].values.astype(str),
+        mean_stress=values("mean_stress"),
+        e_oed_v=values("e_oed_v_linear"),
+        e_oed_h=values("e_oed_h_linear"),
+        e_oed_v_dynamic=values("e_oed_v_dynamic"),
+        e_oed_h_dynamic=values("e_oed_h_dynamic"),
+    )
 
 
 def run_findings(folder: str | Path) -> dict:
     """The findings of one run directory as a flat dict (one row of the validation summary).
 
     Keys: ``run`` (the folder's name), ``max_i`` (largest inertial number on the paths from A),
-    ``n_rods``, ``noise`` (sqrt(0.5/N)), ``iso_fabric_max`` (max |β_yy − β_xx| on A→B),
+    ``n_rods``, ``noise`` (sqrt(0.5/N)), ``iso_fabric_max`` (max |β_yy − β_xx| on A and A→B),
+    ``iso_fabric_within_noise`` (every one within 2 noises),
     ``iso_ratio`` / ``k0_ratio`` (E_h/E_v of the probes along A→B / along K0 by rising p),
     ``k0_fabric``, ``k0_p``, ``lambda_star`` and ``r2`` (ln v – ln p fit over A and A→B),
     ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``, ``fabric_C``, ``k0_C`` (σ_xx/σ_yy at C),
-    ``modulus_exponent`` (n of E_v ∝ p^n on A→B), ``ev_over_p_B``, ``seconds``, ``workers``;
-    ``anisotropy_C`` when the folder holds ``anisotropy.json``; and the findings on the mapped
-    stress window (:func:`mapped_window_findings`).
+    ``modulus_exponent`` (n of E_v ∝ p^n on A and A→B), ``ev_over_p_B``, ``seconds``,
+    ``workers``; ``anisotropy_C`` when the folder holds ``anisotropy.json``; and the findings on
+    the mapped stress window (:func:`mapped_window_findings`). Each finding is computed by the
+    functions of :mod:`dem_taichi.analysis` that the run's report uses too.
     """
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
     relaxed = open_history(folder / "relaxed_states.nc")
-    probes = _probes(folder)
-    stage = relaxed["stage"].values
-    iso = stage == stage_code("A_to_B")
-    k0 = stage == stage_code("A_to_C")
-    states = summary["states"]
+    path = path_arrays(summary, relaxed)
+    probes = probe_arrays(_probes(folder))
     n = int(summary["n_rods"])
-    path_p = np.r_[_state(states, "A", "mean_stress"), relaxed["mean_stress"].values[iso]]
-    path_v = np.r_[_state(states, "A", "specific_volume"), relaxed["specific_volume"].values[iso]]
-    fit = compressibility_slope(path_p, path_v)
-    if probes is not None and probes.sizes.get("probe", 0):
-        path = probes["path"].values.astype(str)
-        labels = probes["state_label"].values.astype(str)
-        ratio = probes["e_oed_h_linear"].values / probes["e_oed_v_linear"].values
-        p = probes["mean_stress"].values
-        e_v = probes["e_oed_v_linear"].values
-    else:
-        path = labels = np.array([], dtype=str)
-        ratio = p = e_v = np.array([], dtype=float)
-    on_iso = (path == "A_to_B") | (labels == "A")
-    on_k0 = path == "A_to_C"
-    order = np.argsort(p[on_k0])
-    iso_p = p[on_iso & (p > 0)]
-    # moduli ∝ p^n along A→B: the slope of ln E_oed,v against ln p (the study: n ≈ 0.8)
-    exponent = (
-        float(np.polyfit(np.log(iso_p), np.log(e_v[on_iso & (p > 0)]), 1)[0])
-        if len(iso_p) > 1 else _NAN
-    )  # fmt: skip
-    at_b = np.flatnonzero(labels == "B")
+    iso_p = path.from_a("A_to_B", "mean_stress")
+    iso_v = path.from_a("A_to_B", "specific_volume")
+    fit = compressibility_slope(iso_p, iso_v)
+    fabric = fabric_isotropy(path.from_a("A_to_B", "fabric_deviator"), n)
+    ratio = stiffness_ratio(probes.e_oed_h, probes.e_oed_v)
+    on_iso = probes.isotropic()
+    k0 = probes.along_k0()
     loading = [
         st["max_inertial_number"]
         for name, st in summary["stages"].items()
@@ -129,33 +153,29 @@ def run_findings(folder: str | Path) -> dict:
         "run": folder.name,
         "max_i": max(loading) if loading else _NAN,
         "n_rods": n,
-        "noise": fabric_sampling_noise(n),
-        "iso_fabric_max": float(
-            np.max(
-                np.abs(
-                    np.r_[_state(states, "A", "fabric_deviator"), relaxed["fabric_deviator"][iso]]
-                )
-            )
-        ),
+        "noise": fabric.noise,
+        "iso_fabric_max": fabric.max_abs,
+        "iso_fabric_within_noise": fabric.within_noise,
         "iso_ratio": [float(x) for x in ratio[on_iso]],
-        "k0_fabric": [float(x) for x in relaxed["fabric_deviator"].values[k0]],
-        "k0_p": [float(x) for x in p[on_k0][order]],
-        "k0_ratio": [float(x) for x in ratio[on_k0][order]],
+        "k0_fabric": [float(x) for x in path.on("A_to_C", "fabric_deviator")],
+        "k0_p": [float(x) for x in probes.mean_stress[k0]],
+        "k0_ratio": [float(x) for x in ratio[k0]],
         "lambda_star": fit["lambda_star"],
         "r2": fit["r2"],
-        "p_A": _state(states, "A", "mean_stress"),
-        "v_A": _state(states, "A", "specific_volume"),
-        "v_B": _state(states, "B", "specific_volume"),
-        "v_C": _state(states, "C", "specific_volume"),
-        "fabric_A": _state(states, "A", "fabric_deviator"),
-        "fabric_C": _state(states, "C", "fabric_deviator"),
-        "k0_C": _state(states, "C", "stress_xx") / _state(states, "C", "stress_yy"),
-        "modulus_exponent": exponent,
-        "ev_over_p_B": float(e_v[at_b[-1]] / p[at_b[-1]]) if at_b.size else _NAN,
+        "p_A": path.at("A", "mean_stress"),
+        "v_A": path.at("A", "specific_volume"),
+        "v_B": path.at("B", "specific_volume"),
+        "v_C": path.at("C", "specific_volume"),
+        "fabric_A": path.at("A", "fabric_deviator"),
+        "fabric_C": path.at("C", "fabric_deviator"),
+        "k0_C": stress_ratio_at(path, "C"),
+        # moduli ∝ p^n along A→B (the study: n ≈ 0.8)
+        "modulus_exponent": power_law_exponent(probes.mean_stress[on_iso], probes.e_oed_v[on_iso]),
+        "ev_over_p_B": modulus_over_p_at(probes, "B"),
         "seconds": summary["total_seconds"],
         "workers": summary.get("workers", 1),
     }
-    row.update(mapped_window_findings(summary, relaxed.attrs, probes, path_p, path_v))
+    row.update(mapped_window_findings(summary, relaxed.attrs, probes, iso_p, iso_v))
     aniso = folder / "anisotropy.json"
     if aniso.exists():
         rows = {r["state"]: r for r in json.loads(aniso.read_text())}
@@ -173,22 +193,12 @@ def _rod_shape(attrs) -> tuple[int, float, float] | None:
     return int(particles["n_spheres"]), float(particles["spacing"]), float(particles["diameter"])
 
 
-def _probe_moduli(probes, label: str) -> tuple[float, float]:
-    """(E_oed,v, E_oed,h) of the last probe of the labelled state; NaN when not probed."""
-    if probes is None or not probes.sizes.get("probe", 0):
-        return _NAN, _NAN
-    at = np.flatnonzero(probes["state_label"].values.astype(str) == label)
-    if not at.size:
-        return _NAN, _NAN
-    i = at[-1]
-    return float(probes["e_oed_v_linear"].values[i]), float(probes["e_oed_h_linear"].values[i])
-
-
-def mapped_window_findings(summary: dict, attrs, probes, iso_p, iso_v) -> dict:
+def mapped_window_findings(summary: dict, attrs, probes: ProbeArrays | None, iso_p, iso_v) -> dict:
     """The findings on the mapped stress window (:mod:`dem_taichi.mapped_window`, issue 19).
 
     ``summary`` (``summary.json``), ``attrs`` (the relaxed states' attributes: the effective
-    scene), ``probes`` (the probes dataset or None), ``iso_p``/``iso_v`` (p in DEM units and v of
+    scene), ``probes`` (the run's :class:`~dem_taichi.analysis.ProbeArrays`, :func:`probe_arrays`;
+    None for none), ``iso_p``/``iso_v`` (p in DEM units and v of
     state A and the relaxed states of A→B, in path order). Keys:
 
     - ``stress_scale_kpa_measured``: 100/p* kPa per DEM unit, p* the DEM stress at which
@@ -210,15 +220,9 @@ def mapped_window_findings(summary: dict, attrs, probes, iso_p, iso_v) -> dict:
     """
     states = summary.get("states", {})
     scene_scale = float(summary.get("stress_scale_kpa", attrs.get("stress_scale_kpa", 1.0)))
-    if probes is not None and probes.sizes.get("probe", 0):
-        path = probes["path"].values.astype(str)
-        labels = probes["state_label"].values.astype(str)
-        on_iso = (path == "A_to_B") | (labels == "A")
-        p = probes["mean_stress"].values[on_iso]
-        e_v = probes["e_oed_v_linear"].values[on_iso]
-        e_h = probes["e_oed_h_linear"].values[on_iso]
-    else:
-        p = e_v = e_h = np.array([], dtype=float)
+    probes = probes if probes is not None else ProbeArrays.empty()
+    on_iso = probes.isotropic()
+    p, e_v, e_h = probes.mean_stress[on_iso], probes.e_oed_v[on_iso], probes.e_oed_h[on_iso]
     measured = stress_scale_from_stiffness(p, e_v)
     found = bool(np.isfinite(measured.kpa_per_unit))
     scale = measured.kpa_per_unit if found else scene_scale
@@ -229,9 +233,12 @@ def mapped_window_findings(summary: dict, attrs, probes, iso_p, iso_v) -> dict:
     n_disc = specific_volume_at(iso_p_kpa, iso_v, STUDY_REFERENCE_KPA)
     shape = _rod_shape(attrs)
     n_rect = specific_volume_rectangle(n_disc, *shape) if shape is not None else _NAN
-    ev_b, eh_b = _probe_moduli(probes, "B")
-    ev_bp, eh_bp = _probe_moduli(probes, "B'")
-    v_b, v_bp = _state(states, "B", "specific_volume"), _state(states, "B'", "specific_volume")
+    ev_b, eh_b = probes.moduli_at("B")
+    ev_bp, eh_bp = probes.moduli_at("B'")
+    v_b, v_bp = (
+        float(states[label]["specific_volume"]) if label in states else _NAN
+        for label in ("B", "B'")
+    )
     p_mid, local = local_compressibility(iso_p_kpa, iso_v)
     return {
         "stress_scale_kpa_measured": measured.kpa_per_unit,
@@ -260,21 +267,12 @@ def state_findings(folder: str | Path) -> dict[str, dict[str, float]]:
     ratio ``e_ratio`` = E_oed,h/E_oed,v (NaN where the state was not probed)."""
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
-    probes = _probes(folder)
-    moduli: dict[str, tuple[float, float]] = {}
-    if probes is not None and probes.sizes.get("probe", 0):
-        labels = probes["state_label"].values.astype(str)
-        for i, label in enumerate(labels):
-            if label:
-                moduli[label] = (
-                    float(probes["e_oed_v_linear"].values[i]),
-                    float(probes["e_oed_h_linear"].values[i]),
-                )
+    probes = probe_arrays(_probes(folder))
     out: dict[str, dict[str, float]] = {}
     for label, measures in summary["states"].items():
         entry = {k: float(measures.get(k, _NAN)) for k in STATE_MEASURES}
-        e_v, e_h = moduli.get(label, (_NAN, _NAN))
-        entry.update(e_oed_v=e_v, e_oed_h=e_h, e_ratio=e_h / e_v if e_v else _NAN)
+        e_v, e_h = probes.moduli_at(label)
+        entry.update(e_oed_v=e_v, e_oed_h=e_h, e_ratio=float(stiffness_ratio(e_h, e_v)))
         out[label] = entry
     return out
 

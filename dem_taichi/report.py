@@ -16,88 +16,116 @@ import math
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike
+
+from dem_taichi.analysis import (
+    FABRIC_NOISE_MULTIPLE,
+    PathArrays,
+    ProbeArrays,
+    compressibility_slope,
+    fabric_isotropy,
+    max_change,
+    methods_relative_difference,
+    stiffness_ratio,
+    stress_ratio_at,
+)
 
 __all__ = ["write_figures", "write_report", "findings", "compressibility_slope"]
 
 
-def compressibility_slope(mean_stress: ArrayLike, specific_volume: ArrayLike) -> dict:
-    """Least-squares fit ln v = a − λ* ln p over the given states; returns λ*, a, R² and rms.
-
-    λ* is the slope of the (ln p, ln v) line (the study's compressibility index, positive for
-    compression). Needs at least 3 states with p > 0.
-    """
-    p = np.asarray(mean_stress, dtype=float)
-    v = np.asarray(specific_volume, dtype=float)
-    ok = (p > 0) & (v > 0) & np.isfinite(p) & np.isfinite(v)
-    if ok.sum() < 3:
-        return {"lambda_star": math.nan, "intercept": math.nan, "r2": math.nan, "n": int(ok.sum())}
-    x, y = np.log(p[ok]), np.log(v[ok])
-    slope, intercept = np.polyfit(x, y, 1)
-    fit = intercept + slope * x
-    ss_res = float(np.sum((y - fit) ** 2))
-    ss_tot = float(np.sum((y - y.mean()) ** 2))
-    return {
-        "lambda_star": float(-slope),
-        "intercept": float(intercept),
-        "r2": 1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan,
-        "rms_residual": math.sqrt(ss_res / ok.sum()),
-        "n": int(ok.sum()),
+def path_arrays(result) -> PathArrays:
+    """The relaxed states of a :class:`~dem_taichi.protocol_records.ProtocolResult` as the
+    arrays the findings read (:class:`~dem_taichi.analysis.PathArrays`), the same arrays
+    :func:`dem_taichi.findings.path_arrays` reads from the run's files."""
+    states = {label: s.measures for label, s in result.states.items()}
+    stage = np.array([str(s.stage) for s in result.path_states], dtype=str)
+    names = set(result.path_states[0].measures) if result.path_states else set()
+    measures = {
+        name: np.array([float(s.measures.get(name, math.nan)) for s in result.path_states])
+        for name in names
+        if all(_is_number(s.measures.get(name)) for s in result.path_states)
     }
+    return PathArrays(states, stage, measures)
+
+
+def probe_arrays(result) -> ProbeArrays:
+    """The probes of a :class:`~dem_taichi.protocol_records.ProtocolResult` as
+    :class:`~dem_taichi.analysis.ProbeArrays` (what ``probes.nc`` holds)."""
+    probes = result.probes
+    if not probes:
+        return ProbeArrays.empty()
+
+    def moduli(name: str, method: str) -> np.ndarray:
+        return np.array([float(pr.modulus(name, method)) for pr in probes])
+
+    return ProbeArrays(
+        label=np.array([str(pr.label) for pr in probes], dtype=str),
+        path=np.array([str(pr.path) for pr in probes], dtype=str),
+        mean_stress=np.array([float(pr.measures["mean_stress"]) for pr in probes]),
+        e_oed_v=moduli("e_oed_v", "linear"),
+        e_oed_h=moduli("e_oed_h", "linear"),
+        e_oed_v_dynamic=moduli("e_oed_v", "dynamic"),
+        e_oed_h_dynamic=moduli("e_oed_h", "dynamic"),
+    )
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, int | float | np.number) and not isinstance(value, bool)
 
 
 def findings(result) -> dict:
-    """Numbers of the study's findings from a :class:`~dem_taichi.protocol.ProtocolResult`."""
-    from dem_taichi.analysis import fabric_sampling_noise
+    """Numbers of the study's findings from a :class:`~dem_taichi.protocol.ProtocolResult`.
 
+    Each finding is computed by the functions of :mod:`dem_taichi.analysis` over the run's
+    arrays (:func:`path_arrays`, :func:`probe_arrays`), the functions that
+    :func:`dem_taichi.findings.run_findings` calls on the run's files.
+    """
+    path, probes = path_arrays(result), probe_arrays(result)
     out: dict = {}
-    noise = fabric_sampling_noise(result.n_rods)
-    out["fabric_noise"] = noise
-    iso = [s for s in result.path_states if s.stage in ("A_to_B",)]
-    if "A" in result.states:
-        iso = [result.states["A"], *iso]
-    if iso:
-        fab = np.array([s.measures["fabric_deviator"] for s in iso])
-        out["isotropic_fabric_max_abs"] = float(np.max(np.abs(fab)))
-        out["isotropic_fabric_within_noise"] = bool(np.all(np.abs(fab) <= 2.0 * noise))
-        slope = compressibility_slope(
-            [s.measures["mean_stress"] for s in iso], [s.measures["specific_volume"] for s in iso]
+    iso_fabric = path.from_a("A_to_B", "fabric_deviator")
+    fabric = fabric_isotropy(iso_fabric, result.n_rods)
+    out["fabric_noise"] = fabric.noise
+    if iso_fabric.size:
+        out["isotropic_fabric_max_abs"] = fabric.max_abs
+        out["isotropic_fabric_within_noise"] = fabric.within_noise
+        out["isotropic_compressibility"] = compressibility_slope(
+            path.from_a("A_to_B", "mean_stress"), path.from_a("A_to_B", "specific_volume")
         )
-        out["isotropic_compressibility"] = slope
-    k0 = [s for s in result.path_states if s.stage == "A_to_C"]
-    if k0:
+    k0_p = path.on("A_to_C", "mean_stress")
+    if k0_p.size:
         out["k0_fabric"] = [
-            (float(s.measures["mean_stress"]), float(s.measures["fabric_deviator"])) for s in k0
+            (float(p), float(b))
+            for p, b in zip(k0_p, path.on("A_to_C", "fabric_deviator"), strict=True)
         ]
-        out["k0_strain_xx_max_change"] = float(
-            max(abs(s.measures["strain_xx"] - result.states["A"].measures["strain_xx"]) for s in k0)
+        out["k0_strain_xx_max_change"] = max_change(
+            path.on("A_to_C", "strain_xx"), path.at("A", "strain_xx")
         )
-        out["k0_stress_ratio_end"] = float(
-            k0[-1].measures["stress_xx"] / k0[-1].measures["stress_yy"]
+        out["k0_stress_ratio_end"] = stress_ratio_at(path, "C")
+    cb_p = path.on("C_to_B", "mean_stress")
+    if cb_p.size and "C" in path.states:
+        p_c = path.at("C", "mean_stress")
+        out["unloading_max_relative_p_change"] = max_change(cb_p, p_c) / p_c
+    by_method = {
+        method: stiffness_ratio(e_h, e_v)
+        for method, (e_v, e_h) in (
+            ("dynamic", (probes.e_oed_v_dynamic, probes.e_oed_h_dynamic)),
+            ("linear", (probes.e_oed_v, probes.e_oed_h)),
         )
-    cb = [s for s in result.path_states if s.stage == "C_to_B"]
-    if cb and "C" in result.states:
-        p_c = result.states["C"].measures["mean_stress"]
-        out["unloading_max_relative_p_change"] = float(
-            max(abs(s.measures["mean_stress"] - p_c) / p_c for s in cb)
-        )
+    }
     ratios: dict[str, list[tuple[str, str, float, float]]] = {}
-    for probe in result.probes:
-        for method in ("dynamic", "linear"):
-            ev, eh = probe.modulus("e_oed_v", method), probe.modulus("e_oed_h", method)
-            if math.isfinite(ev) and math.isfinite(eh) and ev != 0:
-                ratios.setdefault(method, []).append(
-                    (probe.label, probe.path, float(probe.measures["mean_stress"]), eh / ev)
-                )
+    # the methods in the order their first ratio appears among the probes (the report's lines)
+    for method, ratio in sorted(
+        ((m, r) for m, r in by_method.items() if np.isfinite(r).any()),
+        key=lambda item: int(np.flatnonzero(np.isfinite(item[1]))[0]),
+    ):
+        ratios[method] = [
+            (str(probes.label[i]), str(probes.path[i]), float(probes.mean_stress[i]),
+             float(ratio[i]))
+            for i in np.flatnonzero(np.isfinite(ratio))
+        ]  # fmt: skip
     out["anisotropy_ratio"] = ratios
-    agreement = []
-    for probe in result.probes:
-        for name in ("e_oed_v", "e_oed_h"):
-            d, lin = probe.modulus(name, "dynamic"), probe.modulus(name, "linear")
-            if math.isfinite(d) and math.isfinite(lin) and lin != 0:
-                agreement.append(abs(d - lin) / abs(lin))
-    if agreement:
-        out["methods_max_relative_difference"] = float(max(agreement))
+    agreement = methods_relative_difference(probes)
+    if agreement.size:
+        out["methods_max_relative_difference"] = float(np.max(agreement))
         out["methods_median_relative_difference"] = float(np.median(agreement))
     return out
 
@@ -269,7 +297,7 @@ def write_report(result, path: Path | None = None) -> Path:
         lines.append(
             f"- Isotropic path (A and A→B): max |β_yy−β_xx| = {f['isotropic_fabric_max_abs']:.4f} "
             f"against the sampling noise sqrt(0.5/N) = {f['fabric_noise']:.4f} "
-            f"(within 2 noise: {f['isotropic_fabric_within_noise']})."
+            f"(within {FABRIC_NOISE_MULTIPLE:g} noise: {f['isotropic_fabric_within_noise']})."
         )
         c = f["isotropic_compressibility"]
         lines.append(

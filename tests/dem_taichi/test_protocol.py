@@ -8,6 +8,7 @@ tests; each checks a property the method must have, against exact values where t
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import sys
@@ -518,3 +519,49 @@ def test_the_reference_comparison_fails_on_a_changed_trajectory_or_reduction():
     assert not _same("history/stress_xx", x + 3e-8, x)
     assert not _same("history/stress_xx", np.array([1.0, 2.0, np.nan]), x)
     assert not _same("history/n_contacts", np.array([1, 2, 4]), np.array([1, 2, 3]))
+
+
+def test_report_findings_equal_the_folder_findings(run):
+    """The findings of the run's report (computed in memory from the ProtocolResult) equal those
+    read back from its folder (summaries, sweeps, benchmarks), key by key where the two share a
+    meaning: both build the same arrays and call the same functions of dem_taichi.analysis
+    (issue 21)."""
+    from dem_taichi.findings import path_arrays as folder_path_arrays
+    from dem_taichi.findings import probe_arrays as folder_probe_arrays
+    from dem_taichi.findings import run_findings
+    from dem_taichi.report import findings, path_arrays, probe_arrays
+
+    summary = json.loads((Path(run.out_dir) / "summary.json").read_text())
+    in_memory = path_arrays(run)
+    on_disk = folder_path_arrays(summary, open_history(run.files["relaxed_states"]))
+    assert list(in_memory.stage) == list(on_disk.stage)
+    for key in ("mean_stress", "specific_volume", "fabric_deviator", "stress_xx", "stress_yy"):
+        np.testing.assert_array_equal(in_memory.measures[key], on_disk.measures[key], key)
+        for label in run.states:
+            assert in_memory.at(label, key) == on_disk.at(label, key), (label, key)
+    probes = probe_arrays(run)
+    probes_on_disk = folder_probe_arrays(open_probes(run.files["probes"]))
+    for field in dataclasses.fields(probes):
+        np.testing.assert_array_equal(
+            getattr(probes, field.name), getattr(probes_on_disk, field.name), field.name
+        )
+
+    memory, folder = findings(run), run_findings(run.out_dir)
+    same_meaning = {
+        "fabric_noise": "noise",
+        "isotropic_fabric_max_abs": "iso_fabric_max",
+        "isotropic_fabric_within_noise": "iso_fabric_within_noise",
+        "k0_stress_ratio_end": "k0_C",
+    }
+    for in_report, in_folder in same_meaning.items():
+        assert memory[in_report] == folder[in_folder], (in_report, in_folder)
+    fit = memory["isotropic_compressibility"]
+    assert math.isfinite(fit["lambda_star"])
+    assert (fit["lambda_star"], fit["r2"]) == (folder["lambda_star"], folder["r2"])
+    assert [b for _, b in memory["k0_fabric"]] == folder["k0_fabric"]
+    linear = memory["anisotropy_ratio"]["linear"]
+    assert linear  # the probe at B
+    iso = [r for label, path, _, r in linear if path == "A_to_B" or label == "A"]
+    k0 = sorted((p, r) for _, path, p, r in linear if path == "A_to_C")
+    assert iso == folder["iso_ratio"]
+    assert [p for p, _ in k0] == folder["k0_p"] and [r for _, r in k0] == folder["k0_ratio"]
