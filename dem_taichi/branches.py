@@ -1,7 +1,9 @@
 """The branches of the protocol that start from state A, and running them in processes.
 
-A branch is a path, or chain of paths, from A: ``"isotropic"`` (A→B), ``"k0"`` (A→C, then C→B
-when ``run_unloading``), ``"radial <k> <η>"``. :func:`run_branch` runs one from A's checkpoint
+A branch is a path, or chain of paths, from A, a :class:`Branch`: ``Branch("isotropic")``
+(A→B), ``Branch("k0")`` (A→C, then C→B when ``run_unloading``), ``Branch("radial", k, η)``;
+its label (``"isotropic"``, ``"k0"``, ``"radial <k> <η>"``) is how progress lines and the
+resume files name it. :func:`run_branch` runs one from A's checkpoint
 in its own process and hands back a :class:`BranchOutcome` (its history records and its
 :class:`RunLog`); :func:`run_branches_in_processes` runs them in spawned processes (Taichi's
 runtime must not be forked) and merges the outcomes into the run's writers and log in the order
@@ -22,11 +24,18 @@ branch process behind.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 from dem_taichi.paths import ProtocolRunner
 from dem_taichi.protocol_config import ProtocolConfig, probing_settings, protocol_settings
-from dem_taichi.protocol_records import BranchOutcome, ProtocolError, RelaxedState, RunLog
+from dem_taichi.protocol_records import (
+    Branch,
+    BranchOutcome,
+    ProtocolError,
+    RelaxedState,
+    RunLog,
+)
 from dem_taichi.protocol_resume import (
     RecordingWriter,
     ResumeFileError,
@@ -38,7 +47,9 @@ from dem_taichi.protocol_resume import (
 from dem_taichi.worker_lifetime import die_with_parent
 
 __all__ = [
+    "Branch",
     "branch_names",
+    "branch_labels",
     "run_branch_on",
     "run_branch_saved",
     "merge_branch",
@@ -48,31 +59,35 @@ __all__ = [
 ]
 
 
-def branch_names(config: ProtocolConfig) -> list[str]:
-    """The branches that start from A, in the order of the serial run: ``"isotropic"`` (A→B),
-    ``"k0"`` (A→C, then C→B when ``run_unloading``), ``"radial <k> <η>"`` (k-th radial path)."""
-    names = []
+def branch_names(config: ProtocolConfig) -> list[Branch]:
+    """The branches that start from A, in the order of the serial run: ``Branch("isotropic")``
+    (A→B), ``Branch("k0")`` (A→C, then C→B when ``run_unloading``), ``Branch("radial", k, η)``
+    (the k-th radial path, η the k-th of ``radial_stress_ratios``)."""
+    branches = []
     if config.run_isotropic:
-        names.append("isotropic")
+        branches.append(Branch("isotropic"))
     if config.run_k0:
-        names.append("k0")
-    names += [f"radial {k} {eta!r}" for k, eta in enumerate(config.radial_ratios, 1)]
-    return names
+        branches.append(Branch("k0"))
+    branches += [Branch("radial", k, eta) for k, eta in enumerate(config.radial_ratios, 1)]
+    return branches
 
 
-def run_branch_on(runner: ProtocolRunner, branch: str) -> None:
+def branch_labels(branches: Iterable[Branch]) -> str:
+    """The branches' labels, comma-separated (as progress lines name them)."""
+    return ", ".join(branch.label for branch in branches)
+
+
+def run_branch_on(runner: ProtocolRunner, branch: Branch) -> None:
     """Run one branch from A on ``runner`` (its simulation is set to A by the path itself)."""
-    if branch == "isotropic":
+    if branch.kind == "isotropic":
         runner.isotropic_path()
-    elif branch == "k0":
+    elif branch.kind == "k0":
         runner.k0_path()
         if runner.config.run_unloading:
             runner.unloading_path()
-    elif branch.startswith("radial "):
-        _, index, eta = branch.split()
-        runner.radial_path(float(eta), int(index))
     else:
-        raise ValueError(f"branch = {branch!r}: allowed isotropic | k0 | radial <k> <eta>")
+        assert branch.eta is not None  # a radial branch has its η (Branch.__post_init__)
+        runner.radial_path(branch.eta, branch.index)
 
 
 class _RecordList(list):
@@ -85,7 +100,7 @@ class _RecordList(list):
 
 
 def run_branch(
-    branch: str,
+    branch: Branch,
     run: RunIdentity,
     checkpoint_A: str,
     state_A: RelaxedState,
@@ -123,7 +138,7 @@ def run_branch(
     return outcome
 
 
-def run_branch_saved(runner: ProtocolRunner, branch: str, index: int, run: RunIdentity) -> None:
+def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: RunIdentity) -> None:
     """Run one branch on the serial ``runner`` as :func:`run_branch_on` does (its records reach
     the run's writers as they come), with a log of its own merged into the run's at the end,
     and save its outcome as the ``index``-th branch in the ``resume/`` folder of ``run``."""
@@ -193,7 +208,16 @@ def _checkpoint_for_workers(runner, run: RunIdentity) -> str:
 
 
 def run_branches_in_processes(
-    runner, history, relaxed, branches, workers, arch, precision, progress, run, done=None
+    runner,
+    history,
+    relaxed,
+    branches: list[Branch],
+    workers,
+    arch,
+    precision,
+    progress,
+    run,
+    done: dict[Branch, BranchOutcome] | None = None,
 ) -> None:
     """Run the branches from A in ``workers`` spawned processes and merge them in order into
     ``history``, ``relaxed`` (the writers of history.nc and relaxed_states.nc) and
@@ -201,7 +225,8 @@ def run_branches_in_processes(
 
     A branch that fails does not lose the others: the finished ones are merged (their records
     reach history.nc and relaxed_states.nc), then the first failure is raised. ``run``: the
-    :class:`RunIdentity` of the run folder. ``done``: branch name → saved
+    :class:`RunIdentity` of the run folder. ``branches``: the branches from A
+    (:class:`Branch`) in the order of the serial run. ``done``: branch → saved
     :class:`BranchOutcome` of a resumed run; those are merged in their place, not run again.
     Every branch run here saves its outcome in ``<run>/resume/``. The workers die with this
     process (:func:`dem_taichi.worker_lifetime.die_with_parent`).
@@ -213,7 +238,7 @@ def run_branches_in_processes(
     save_states = bool(runner.config.save_states)
     done = done or {}
     todo = [b for b in branches if b not in done]
-    runner._say(f"[branches] {', '.join(todo)} from A in {workers} processes")
+    runner._say(f"[branches] {branch_labels(todo)} from A in {workers} processes")
     context = multiprocessing.get_context("spawn")  # Taichi's runtime must not be forked
     pool = ProcessPoolExecutor(
         max_workers=workers, mp_context=context, initializer=die_with_parent,
@@ -241,4 +266,4 @@ def run_branches_in_processes(
             raise
     if errors:
         failed, error = errors[0]
-        raise ProtocolError(f"branch {failed!r} from A failed: {error}") from error
+        raise ProtocolError(f"branch {failed.label!r} from A failed: {error}") from error

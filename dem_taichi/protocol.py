@@ -54,6 +54,7 @@ from pathlib import Path
 
 from dem_taichi.branches import (
     BranchOutcome,
+    branch_labels,
     branch_names,
     merge_branch,
     run_branch,
@@ -263,8 +264,8 @@ def run_protocol(
                 start -= saved_a.seconds  # the wall time counts the run's time up to A
                 _restore_stage_a(runner, saved_a, history, relaxed)
                 runner._say(
-                    f"[resume] from state A; branches done: {', '.join(done) or 'none'}; to run: "
-                    + (", ".join(b for b in branches if b not in done) or "none")
+                    f"[resume] from state A; branches done: {branch_labels(done) or 'none'}; to "
+                    f"run: {branch_labels(b for b in branches if b not in done) or 'none'}"
                 )
             runner.history, runner.relaxed_writer = history, relaxed
             if workers == 1 or len(branches) < 2:

@@ -5,7 +5,9 @@
 one log of a run: stage records, relaxed states, configurations, checkpoints, probes and their
 times, the transition), :class:`ProtocolResult` (everything
 :func:`dem_taichi.protocol.run_protocol` did, its log with the files written, and its JSON
-summary) and :class:`ProtocolError`. Plain data, no engine.
+summary), :class:`Branch` (a path, or chain of paths, from state A) with
+:class:`BranchOutcome` (what running one hands back) and :class:`ProtocolError`. Plain data, no
+engine.
 
 Who writes the log: :class:`dem_taichi.paths.ProtocolRunner` (stages, states, configurations,
 checkpoints, transition) and :class:`dem_taichi.probing.ProbeRecorder` (probes and their times)
@@ -21,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -33,6 +35,8 @@ __all__ = [
     "RelaxedState",
     "StageRecord",
     "RunLog",
+    "Branch",
+    "BranchKind",
     "BranchOutcome",
     "ProtocolResult",
 ]
@@ -154,6 +158,88 @@ class RunLog:
             by_stage[stage] = by_stage.get(stage, 0.0) + seconds
 
 
+BranchKind = Literal["isotropic", "k0", "radial"]
+_BRANCH_KINDS: tuple[str, ...] = get_args(BranchKind)
+
+
+@dataclass(frozen=True)
+class Branch:
+    """One branch of the protocol from state A (:mod:`dem_taichi.branches` runs it):
+    ``Branch("isotropic")`` A→B; ``Branch("k0")`` A→C, then C→B when ``run_unloading``;
+    ``Branch("radial", k, η)`` the k-th radial path (k ≥ 1, from 1 in the order of
+    ``radial_stress_ratios``) at the stress ratio η = q/p (finite; stored as a float).
+    Here, below the branches, beside :class:`BranchOutcome`, which holds one.
+
+    Its :attr:`label` (also its ``str``) is the text the outputs have always carried
+    (``"isotropic"``, ``"k0"``, ``"radial 1 0.5"``: η by ``repr``, so exact), in progress
+    lines and the resume files; :meth:`parse` reads a label back from a file.
+
+    >>> Branch("radial", 2, 0.5).label
+    'radial 2 0.5'
+    >>> Branch.parse("radial 2 0.5") == Branch("radial", 2, 0.5)
+    True
+    """
+
+    kind: BranchKind
+    index: int = 0
+    eta: float | None = None
+
+    def __post_init__(self) -> None:
+        allowed = "allowed: Branch('isotropic'), Branch('k0'), Branch('radial', k >= 1, eta)"
+        if self.kind not in _BRANCH_KINDS:
+            raise ValueError(f"branch kind {self.kind!r} is not a branch from A; {allowed}")
+        if type(self.index) is not int:  # not a bool, a float or a numpy integer either
+            raise ValueError(f"branch index {self.index!r} must be an int")
+        if self.kind != "radial":
+            if self.index != 0 or self.eta is not None:
+                raise ValueError(
+                    f"Branch({self.kind!r}) takes no index or eta (given index {self.index!r}, "
+                    f"eta {self.eta!r}); {allowed}"
+                )
+            return
+        if self.index < 1:
+            raise ValueError(
+                f"a radial branch's index {self.index!r} must be >= 1 (the k-th radial path)"
+            )
+        eta = self.eta
+        if isinstance(eta, bool) or not isinstance(eta, int | float) or not math.isfinite(eta):
+            raise ValueError(f"a radial branch's eta {eta!r} must be a finite number")
+        object.__setattr__(self, "eta", float(eta))  # a plain float: its repr is the label's
+
+    @property
+    def label(self) -> str:
+        """The branch as text: ``"isotropic"``, ``"k0"`` or ``"radial <k> <repr(η)>"``."""
+        if self.kind == "radial":
+            return f"radial {self.index} {self.eta!r}"
+        return self.kind
+
+    def __str__(self) -> str:
+        return self.label
+
+    @classmethod
+    def parse(cls, text: str) -> Branch:
+        """The branch whose :attr:`label` is ``text`` (as a resume file of an earlier run holds
+        it); a text that is not exactly such a label raises ``ValueError`` saying why."""
+        expected = "expected 'isotropic', 'k0' or 'radial <k> <eta>' as this package writes it"
+        if not isinstance(text, str):  # read from a file: any JSON value
+            raise ValueError(f"branch {text!r} is not text; {expected}")
+        try:
+            match text.split(" "):
+                case ["isotropic"]:
+                    branch = cls("isotropic")
+                case ["k0"]:
+                    branch = cls("k0")
+                case ["radial", index, eta]:
+                    branch = cls("radial", int(index), float(eta))
+                case _:
+                    raise ValueError("not of this form")  # caught just below
+        except ValueError as error:
+            raise ValueError(f"branch {text!r}: {error}; {expected}") from None
+        if branch.label != text:  # "radial 1 0.50", "radial +1 .5": not written by this package
+            raise ValueError(f"branch {text!r} is not written as {branch.label!r}; {expected}")
+        return branch
+
+
 @dataclass
 class BranchOutcome:
     """What one branch run in its own process hands back to
@@ -161,9 +247,13 @@ class BranchOutcome:
     its log (without A, which the run's log holds). Here, below the branches, so the resume
     files (:mod:`dem_taichi.resume_codec`) can name it without importing the runners."""
 
-    branch: str
+    branch: Branch
     history: list[dict]
     log: RunLog
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.branch, Branch):  # a label where the type belongs
+            raise TypeError(f"BranchOutcome.branch must be a Branch, not {self.branch!r}")
 
 
 @dataclass

@@ -23,7 +23,7 @@ with one line saying how to resume (exit code 130/143).
 What a resume trusts and checks. The files are data only: a checkpoint-format ``.npz``
 (:mod:`dem_taichi.io.checkpoint`: arrays and one JSON member, read with
 ``allow_pickle=False``, CRC-checked) whose JSON holds the format name and version, the kind of
-file (A or branch k, with the branch's name), the run id and scene hash of the run that wrote
+file (A or branch k, with the branch's label), the run id and scene hash of the run that wrote
 it, and the records in the encoding of :mod:`dem_taichi.resume_codec` (numbers, strings,
 arrays and this package's record dataclasses, nothing else). Loading one runs no code of the
 file. A file whose run id or scene hash differs from the run's ``run.json`` (copied from
@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING, Any
@@ -52,7 +53,7 @@ from dem_taichi.io.checkpoint import CheckpointError, load_checkpoint, save_chec
 from dem_taichi.resume_codec import EncodingError, decode, encode
 
 if TYPE_CHECKING:
-    from dem_taichi.protocol_records import BranchOutcome
+    from dem_taichi.protocol_records import Branch, BranchOutcome
 
 __all__ = [
     "RESUME_DIR",
@@ -282,37 +283,39 @@ def load_stage_a(run: RunIdentity) -> StageA | None:
 _REMEDY_BRANCH = "delete it and resume again (the branch is run again)"
 
 
-def save_branch(run: RunIdentity, index: int, outcome) -> Path:
-    """Write ``resume/branch_<index>.npz`` of ``run`` (``outcome``: a BranchOutcome)."""
+def save_branch(run: RunIdentity, index: int, outcome: BranchOutcome) -> Path:
+    """Write ``resume/branch_<index>.npz`` of ``run``; the branch is written as its label."""
     saved = dataclasses.replace(outcome, log=_log_relative(outcome.log, run.path))
-    header = _header(run, "branch", index=int(index), branch=outcome.branch)
+    header = _header(run, "branch", index=int(index), branch=outcome.branch.label)
     return _save(branch_file(run.path, index), header, saved)
 
 
-def load_branches(run: RunIdentity, branches: list[str]) -> dict[str, BranchOutcome]:
-    """The saved outcomes of ``branches`` (by name) of ``run``, for those whose file exists;
-    refuses (:class:`ResumeFileError`) a file that is damaged, not this run's, or of another
-    branch."""
+def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, BranchOutcome]:
+    """The saved outcomes of ``branches`` of ``run``, for those whose file exists (the k-th
+    branch's is ``branch_<k>.npz``); refuses (:class:`ResumeFileError`) a file that is
+    damaged, not this run's, or of another branch (its label is not the branch's)."""
     from dem_taichi.protocol_records import BranchOutcome, RunLog
 
     done = {}
-    for index, name in enumerate(branches):
+    for index, branch in enumerate(branches):
         path = branch_file(run.path, index)
         if not path.exists():
             continue
-        outcome = _load(path, run, "branch", _REMEDY_BRANCH, index=index, branch=name)
+        outcome = _load(path, run, "branch", _REMEDY_BRANCH, index=index, branch=branch.label)
         if not (
             isinstance(outcome, BranchOutcome)
-            and outcome.branch == name
+            and outcome.branch == branch
             and isinstance(outcome.history, list)
             and isinstance(outcome.log, RunLog)
         ):
-            raise _refusal(path, f"damaged: not the outcome of branch {name!r}", _REMEDY_BRANCH)
-        done[name] = dataclasses.replace(outcome, log=_log_absolute(outcome.log, run.path, path))
+            raise _refusal(
+                path, f"damaged: not the outcome of branch {branch.label!r}", _REMEDY_BRANCH
+            )
+        done[branch] = dataclasses.replace(outcome, log=_log_absolute(outcome.log, run.path, path))
     return done
 
 
-def saved_summary(out_dir: str | Path, branches: list[str]) -> str:
+def saved_summary(out_dir: str | Path, branches: Sequence[Branch]) -> str:
     """What a resume of the run in ``out_dir`` would start from, in words."""
     if not stage_a_file(out_dir).exists():
         return "state A was not reached (a resume starts again from the gas)"

@@ -6,7 +6,10 @@ RunLog` and the dataclasses inside it) and the engine state (a dict of numpy arr
 would store them in a few lines, but loading a pickle runs whatever code the file names; this
 encoding can only ever build numbers, strings, lists, tuples, dicts, numpy arrays and numpy
 scalars of numeric types, and instances of the dataclasses listed in :func:`_known_types`
-(their ``__init__`` only, with exactly their fields).
+(their ``__init__`` only, with exactly their fields). A branch from A
+(:class:`dem_taichi.protocol_records.Branch`, the field ``branch`` of a ``BranchOutcome``) is
+stored as its label, the text ``"radial 1 0.5"`` that earlier versions stored, and read back
+with ``Branch.parse``: the files of either version read in the other.
 
 :func:`encode` turns a value into a JSON-ready tree and a dict of arrays (``a0``, ``a1``...,
 stored as npz members); :func:`decode` turns them back, bit for bit: floats are written by
@@ -32,6 +35,8 @@ import numpy as np
 if TYPE_CHECKING:
     from _typeshed import DataclassInstance
 
+    from dem_taichi.protocol_records import Branch
+
 __all__ = ["EncodingError", "encode", "decode"]
 
 #: numpy kinds that can be stored without pickles: bool, ints, unsigned, floats, complex,
@@ -39,6 +44,8 @@ __all__ = ["EncodingError", "encode", "decode"]
 _ARRAY_KINDS = "biufcUS"
 _SCALAR_KINDS = "biufc"
 _TAGS = ("$float", "$scalar", "$array", "$tuple", "$dict", "$obj")
+#: Fields of record types stored as the label of their :class:`Branch`, by type name.
+_BRANCH_FIELDS = {"BranchOutcome": ("branch",)}
 
 
 class EncodingError(ValueError):
@@ -118,11 +125,24 @@ def _encode_object(value: Any, arrays: dict[str, np.ndarray], where: str) -> dic
     name = type(value).__name__
     if _known_types().get(name) is not type(value):
         raise EncodingError(f"{where}: {name} is not a record type a resume file may hold")
+    branch_fields = _BRANCH_FIELDS.get(name, ())
     fields = {
-        f.name: _encode(getattr(value, f.name), arrays, f"{where}.{f.name}")
+        f.name: (
+            _encode_branch(getattr(value, f.name), f"{where}.{f.name}")
+            if f.name in branch_fields
+            else _encode(getattr(value, f.name), arrays, f"{where}.{f.name}")
+        )
         for f in dataclasses.fields(value)
     }
     return {"$obj": [name, fields]}
+
+
+def _encode_branch(value: Any, where: str) -> str:
+    from dem_taichi.protocol_records import Branch
+
+    if not isinstance(value, Branch):
+        raise EncodingError(f"{where}: {value!r} is not a Branch")
+    return value.label
 
 
 # -- decoding -------------------------------------------------------------------------------
@@ -219,5 +239,21 @@ def _decode_object(body: Any, arrays: dict, types: dict[str, type], where: str) 
         raise EncodingError(
             f"{where}: {name} fields {sorted(fields)} are not the expected {sorted(expected)}"
         )
-    values = {k: _decode(v, arrays, types, f"{where}.{k}") for k, v in fields.items()}
+    branch_fields = _BRANCH_FIELDS.get(name, ())
+    values = {
+        k: _decode_branch(v, f"{where}.{k}") if k in branch_fields
+        else _decode(v, arrays, types, f"{where}.{k}")
+        for k, v in fields.items()
+    }  # fmt: skip
     return cls(**values)
+
+
+def _decode_branch(tree: Any, where: str) -> Branch:
+    from dem_taichi.protocol_records import Branch
+
+    if not isinstance(tree, str):
+        raise EncodingError(f"{where}: a branch is its label, found {type(tree).__name__}")
+    try:
+        return Branch.parse(tree)
+    except ValueError as error:
+        raise EncodingError(f"{where}: {error}") from None

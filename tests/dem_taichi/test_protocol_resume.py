@@ -24,7 +24,7 @@ def interrupted(tmp_path_factory):
     original = branches.run_branch_on
 
     def stop_at_k0(runner, branch):
-        if branch == "k0":
+        if branch.kind == "k0":
             raise KeyboardInterrupt
         return original(runner, branch)
 
@@ -47,12 +47,14 @@ def _release_runs() -> None:
 
 
 def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
+    from dem_taichi.protocol_records import Branch
     from dem_taichi.protocol_resume import saved_summary
 
     assert (interrupted / "resume" / "A.npz").exists()
     assert (interrupted / "resume" / "branch_0.npz").exists()
     assert not (interrupted / "resume" / "branch_1.npz").exists()
-    text = saved_summary(interrupted, ["isotropic", "k0", "radial 1 0.4"])
+    branches = [Branch("isotropic"), Branch("k0"), Branch("radial", 1, 0.4)]
+    text = saved_summary(interrupted, branches)
     assert text == "state A and 1 of 3 branches from A are saved"
     assert not (interrupted / "summary.json").exists()
 

@@ -26,7 +26,7 @@ import pytest
 from dem_taichi.config import scene_to_toml
 from dem_taichi.io.checkpoint import load_checkpoint, save_checkpoint
 from dem_taichi.io.run_directory import start_run
-from dem_taichi.protocol_records import RelaxedState, RunLog, StageRecord
+from dem_taichi.protocol_records import Branch, RelaxedState, RunLog, StageRecord
 from dem_taichi.protocol_resume import (
     ResumeFileError,
     RunIdentity,
@@ -42,7 +42,8 @@ from dem_taichi.protocol_resume import (
 from .test_protocol import smoke_protocol_scene
 from .test_protocol_resume import _alive, _children, _cmdline
 
-BRANCHES = ["isotropic", "k0", "radial 1 0.4"]
+ISOTROPIC, K0, RADIAL = Branch("isotropic"), Branch("k0"), Branch("radial", 1, 0.4)
+BRANCHES = [ISOTROPIC, K0, RADIAL]
 
 
 class PicklePayload:
@@ -85,12 +86,12 @@ def _stage_a(folder: Path) -> StageA:
     return StageA(history, [dict(history[0])], _log(folder), state, 12.5)
 
 
-def _outcome(name: str, folder: Path):
+def _outcome(branch: Branch, folder: Path):
     from dem_taichi.branches import BranchOutcome
 
     log = RunLog(stages={"A_to_B": StageRecord("A_to_B", 2.0, 99)})
     log.checkpoints["B"] = str(folder / "state_B.npz")
-    return BranchOutcome(name, [{"step": np.int64(9), "mean_stress": 20.0}], log)
+    return BranchOutcome(branch, [{"step": np.int64(9), "mean_stress": 20.0}], log)
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +104,7 @@ def saved(tmp_path, scene_toml) -> RunIdentity:
     """A protocol run folder with ``resume/A.npz`` and ``resume/branch_0.npz``."""
     run = _claim(tmp_path / "run", scene_toml)
     save_stage_a(run, _stage_a(run.path))
-    save_branch(run, 0, _outcome("isotropic", run.path))
+    save_branch(run, 0, _outcome(ISOTROPIC, run.path))
     return run
 
 
@@ -112,8 +113,8 @@ def other(tmp_path, scene_toml) -> RunIdentity:
     """Another run of the same scene, with its own resume files."""
     run = _claim(tmp_path / "other", scene_toml)
     save_stage_a(run, _stage_a(run.path))
-    for index, name in enumerate(BRANCHES):
-        save_branch(run, index, _outcome(name, run.path))
+    for index, branch in enumerate(BRANCHES):
+        save_branch(run, index, _outcome(branch, run.path))
     return run
 
 
@@ -143,7 +144,8 @@ def test_genuine_files_round_trip_bit_for_bit(saved):
     assert stage.log.configurations["A"][2].tobytes() == np.array([3.0, 4.0]).tobytes()
     assert stage.log.checkpoints == {"A": str(saved.path / "state_A.npz")}
     done = load_branches(saved, BRANCHES)
-    assert list(done) == ["isotropic"] and done["isotropic"].history[0]["mean_stress"] == 20.0
+    assert list(done) == [ISOTROPIC] and done[ISOTROPIC].history[0]["mean_stress"] == 20.0
+    assert done[ISOTROPIC].branch == ISOTROPIC
 
 
 def test_the_files_are_data_only_with_the_run_and_relative_paths(saved):
@@ -164,7 +166,7 @@ def test_a_moved_run_folder_resolves_its_paths_in_the_new_place(saved, tmp_path)
     shutil.move(saved.path, moved)
     run = RunIdentity(moved, saved.run_id, saved.scene_sha256)
     assert load_stage_a(run).log.checkpoints["A"] == str(moved / "state_A.npz")
-    assert load_branches(run, BRANCHES)["isotropic"].log.checkpoints["B"] == str(
+    assert load_branches(run, BRANCHES)[ISOTROPIC].log.checkpoints["B"] == str(
         moved / "state_B.npz"
     )
 
@@ -219,7 +221,7 @@ def test_a_file_of_another_scene_is_refused(saved, tmp_path):
     toml = scene_to_toml(smoke_protocol_scene(path_increments=3))
     foreign = _claim(tmp_path / "foreign", toml)
     assert foreign.scene_sha256 != saved.scene_sha256
-    save_branch(foreign, 2, _outcome("radial 1 0.4", foreign.path))
+    save_branch(foreign, 2, _outcome(RADIAL, foreign.path))
     shutil.copy(branch_file(foreign.path, 2), branch_file(saved.path, 2))
     _refused(lambda: load_branches(saved, BRANCHES), "branch_2.npz", foreign.scene_sha256[:12])
 

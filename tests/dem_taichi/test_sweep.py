@@ -295,7 +295,7 @@ def test_unfinished_member_resumes_from_its_saved_state_a(tmp_path, monkeypatch)
     original = branches.run_branch_on
 
     def fail_at_k0(runner, branch):
-        if branch == "k0":
+        if branch.kind == "k0":
             raise RuntimeError("made to fail")
         return original(runner, branch)
 
