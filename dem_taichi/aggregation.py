@@ -11,7 +11,7 @@ import math
 import time
 
 from dem_taichi.protocol_records import ProtocolError
-from dem_taichi.quasistatic import apply_strain, hold, rescale_speed
+from dem_taichi.quasistatic import apply_strain, hold, resample_speed, rescale_speed
 
 __all__ = ["aggregate"]
 
@@ -27,8 +27,10 @@ def aggregate(runner) -> dict:
        ``aggregation_time`` ("time"), or until the coordination number Z
        (``coordination_number``, contacts per rod) reaches ``aggregation_coordination``
        ("coordination"), at most ``aggregation_max_time`` — then a one-line note, not an
-       error. With ``aggregation_speed`` the bodies' rms velocity component is rescaled to
-       it at the start and after every check.
+       error. With ``aggregation_speed`` the bodies' velocities are brought to it at the
+       start and after every check, by ``aggregation_thermostat``: drawn afresh
+       (:func:`~dem_taichi.quasistatic.resample_speed`, the default) or rescaled by one
+       factor (:func:`~dem_taichi.quasistatic.rescale_speed`).
 
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
@@ -46,6 +48,9 @@ def aggregate(runner) -> dict:
     phi_start = 1.0 / start["specific_volume"]
     details: dict = {
         "criterion": c.aggregation,
+        "thermostat": (
+            (c.aggregation_thermostat or "resample") if c.aggregation_speed is not None else "none"
+        ),
         "area_fraction_start": phi_start,
         "coordination_number_start": start["coordination_number"],
         "step_start": start["step"],
@@ -79,8 +84,17 @@ def aggregate(runner) -> dict:
     total = max(int(math.ceil(limit / dt - 1e-9)), 1)
     target_z = c.aggregation_coordination if c.aggregation == "coordination" else None
     speed = c.aggregation_speed
-    if speed is not None:
-        rescale_speed(sim, speed)
+    seed = sim.scene.scene.seed
+
+    def thermostat() -> None:
+        if speed is None:
+            return
+        if (c.aggregation_thermostat or "resample") == "rescale":
+            rescale_speed(sim, speed)
+        else:
+            resample_speed(sim, speed, seed)
+
+    thermostat()
     runner._since_output = 0
     done, check = 0, 0
     z = measures["coordination_number"]
@@ -102,8 +116,8 @@ def aggregate(runner) -> dict:
                 f"KE/N={measures['kinetic_energy'] / sim.n_rods:.3g} "
                 f"p={measures['mean_stress']:.4g}",
             )
-        if speed is not None and not reached and done < total:
-            rescale_speed(sim, speed)
+        if not reached and done < total:
+            thermostat()
     met = reached or target_z is None
     if runner.history is not None and runner._since_output > 0:
         runner.history.append(measures)  # the end of the stage

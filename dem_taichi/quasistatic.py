@@ -5,7 +5,8 @@ The loading paths (:mod:`dem_taichi.protocol`) and the probes (:mod:`dem_taichi.
 built from these three: the strain-rate cap of the inertial number, a relaxation at fixed cell
 to a static state, and a strain increment applied at constant rates. The ageing of the gas
 before the compression to A (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`) adds two: a
-run at fixed cell (:func:`hold`) and a rescale of the bodies' velocities (:func:`rescale_speed`).
+run at fixed cell (:func:`hold`) and a rescale or a fresh draw of the bodies' velocities
+(:func:`rescale_speed`, :func:`resample_speed`).
 
 Symbols: I = ε̇ d sqrt(ρ/p) inertial number (ρ = rod mass / rod solid area, 2D density; d disc
 diameter; p mean stress), UFR unbalanced-force ratio, KE kinetic energy, ε logarithmic strain
@@ -18,10 +19,12 @@ import math
 from collections.abc import Callable
 from typing import Any, cast
 
+import numpy as np
+
 from dem_taichi.engine import CellControl, Simulation
 from dem_taichi.measures import Measures
 
-__all__ = ["strain_rate_cap", "relax", "apply_strain", "hold", "rescale_speed"]
+__all__ = ["strain_rate_cap", "relax", "apply_strain", "hold", "rescale_speed", "resample_speed"]
 
 
 def strain_rate_cap(
@@ -121,4 +124,29 @@ def rescale_speed(sim: Simulation, speed: float) -> float:
         omega = state["angular_velocity"]
         state["angular_velocity"] = omega * omega.dtype.type(factor)
         sim.set_state(state)
+    return before
+
+
+def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
+    """Draw every body's velocity afresh at the kinetic temperature of ``speed`` (an Andersen
+    thermostat, all bodies at once); returns the rms velocity component before.
+
+    Velocity components ~ N(0, speed²), then the mean velocity removed (the gas's momentum stays
+    zero); angular velocities ~ N(0, speed² M/I), the rotational share of equipartition
+    (½ I ω² = ½ M v_x²; M and I of a rod, or of a disc for bonded rods). The generator is
+    PCG64 seeded by (``seed``, the current step), so the draw is deterministic and a resumed run
+    draws what the uninterrupted one drew. Unlike :func:`rescale_speed` it has no memory: a body
+    that loses no energy between draws cannot be pumped (docs/science/dem-model.md §1.6).
+    """
+    state = sim.get_state()
+    velocity = state["velocity"]
+    before = float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+    rng = np.random.Generator(np.random.PCG64([int(seed), 0x41474754, int(sim.step)]))
+    drawn = rng.normal(0.0, speed, size=velocity.shape)
+    drawn -= drawn.mean(axis=0, keepdims=True)
+    omega = state["angular_velocity"]
+    spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
+    state["velocity"] = drawn.astype(velocity.dtype)
+    state["angular_velocity"] = rng.normal(0.0, spin, size=omega.shape).astype(omega.dtype)
+    sim.set_state(state)
     return before

@@ -99,27 +99,63 @@ def test_rescale_speed_sets_the_rms_velocity_component():
     )
 
 
-def test_speed_is_rescaled_at_the_start_and_after_every_check(monkeypatch):
-    """With aggregation_speed the rescale runs at the start of the ageing and after every
-    check but the last: the gas keeps the rms speed asked."""
-    import dem_taichi.aggregation as stage_module  # where the stage calls hold, rescale_speed
+@pytest.mark.parametrize(
+    ("thermostat", "function"),
+    [(None, "resample_speed"), ("resample", "resample_speed"), ("rescale", "rescale_speed")],
+)
+def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermostat, function):
+    """With aggregation_speed the thermostat (a fresh draw by default, or the rescale) runs at
+    the start of the ageing and after every check but the last: the gas keeps the rms speed
+    asked."""
+    import dem_taichi.aggregation as stage_module  # where the stage calls its thermostat
 
     calls: list[float] = []
-    original = stage_module.rescale_speed
+    original = getattr(stage_module, function)
 
-    def counting(sim, speed):
+    def counting(sim, speed, *args):
         calls.append(speed)
-        return original(sim, speed)
+        return original(sim, speed, *args)
 
-    monkeypatch.setattr(stage_module, "rescale_speed", counting)
-    scene = attractive_scene(aggregation="time", aggregation_time=3.0, aggregation_speed=0.25)
+    monkeypatch.setattr(stage_module, function, counting)
+    keys = {"aggregation_thermostat": thermostat} if thermostat else {}
+    scene = attractive_scene(
+        aggregation="time", aggregation_time=3.0, aggregation_speed=0.25, **keys
+    )
     runner, details, records = run_stage(scene)
     checks = -(-details["aging_steps"] // protocol_settings(scene).relax_check_steps)
     assert calls == [0.25] * checks  # the start and after checks 1 … checks − 1
-    # every record comes one check after a rescale: its kinetic energy per rod is far above
-    # that of the free gas (rms 0.05 per component, rod mass 5: 0.025)
+    assert details["thermostat"] == (thermostat or "resample")
+    # every record comes one check after a thermostat call: its kinetic energy per rod is far
+    # above that of the free gas (rms 0.05 per component, rod mass 5: 0.025)
     ke = [r["kinetic_energy"] / runner.sim.n_rods for r in records]
     assert min(ke) > 10 * 0.5 * 5.0 * 2 * 0.05**2
+
+
+def test_resample_speed_draws_maxwell_velocities_seeded_by_seed_and_step():
+    """resample_speed draws v ~ N(0, s²) per component with the mean removed and ω ~ N(0, s² M/I)
+    from PCG64 seeded by (seed, 0x41474754, step): the same draw as written out here, whatever
+    the velocities before (no memory: a spinning rod is not pumped), and zero total momentum."""
+    from dem_taichi.engine import Simulation
+    from dem_taichi.quasistatic import resample_speed
+
+    sim = Simulation(attractive_scene())
+    state = sim.get_state()
+    rms = float(np.sqrt(np.mean(state["velocity"] ** 2)))
+    state["angular_velocity"][0] = 50.0  # a rod spinning fast: forgotten by the draw
+    sim.set_state(state)
+    assert resample_speed(sim, 0.3, 7) == pytest.approx(rms, rel=1e-12)
+    after = sim.get_state()
+    rng = np.random.Generator(np.random.PCG64([7, 0x41474754, sim.step]))
+    drawn = rng.normal(0.0, 0.3, size=after["velocity"].shape)
+    drawn -= drawn.mean(axis=0, keepdims=True)
+    spin = 0.3 * np.sqrt(sim.body.mass / sim.body.inertia)
+    omega = rng.normal(0.0, spin, size=after["angular_velocity"].shape)
+    np.testing.assert_array_equal(after["velocity"], drawn)
+    np.testing.assert_array_equal(after["angular_velocity"], omega)
+    np.testing.assert_allclose(after["velocity"].sum(axis=0), 0.0, atol=1e-12)
+    # another seed draws another gas
+    resample_speed(sim, 0.3, 8)
+    assert not np.array_equal(sim.get_state()["velocity"], drawn)
 
 
 def test_free_ageing_raises_the_coordination_number_at_fixed_cell():
@@ -395,6 +431,11 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.0\n',
          ["aggregation_speed", "out of range"]),
         ("pressure_tolerance_reduced = 0.0\n", ["pressure_tolerance_reduced", "out of range"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_thermostat = "resample"\n',
+         ["aggregation_thermostat", "only with aggregation_speed"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
+         'aggregation_thermostat = "nose-hoover"\n',
+         ["aggregation_thermostat", "resample", "rescale"]),
     ],
 )  # fmt: skip
 def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
