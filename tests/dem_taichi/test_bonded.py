@@ -1,5 +1,5 @@
-"""Bonded rods (model.md §1.7, issue 10): the bond law, a single chain against the discrete-chain
-solution, conservation, breakage, resume, execution modes and precision.
+"""Bonded rods (docs/science/dem-model.md §1.7, issue 10): the bond law, a single chain against
+the discrete-chain solution, conservation, breakage, resume, execution modes and precision.
 
 - the kernels' bond forces equal the numpy law (:mod:`dem_taichi.bonds`), which is the exact
   gradient of its energy (finite differences) and conserves linear and angular momentum;

@@ -38,7 +38,8 @@ def friction_network(frictionless_network):
 
 
 def bond_energy(x_g, theta_g, x_h, theta_h, rest, lam, bonds):
-    """U_b = λ·e + ½ Σ k e² with the objective bond measures, written out from model.md §1.7."""
+    """U_b = λ·e + ½ Σ k e² with the objective bond measures, written out from
+    docs/science/dem-model.md §1.7."""
     d = np.asarray(x_h) - np.asarray(x_g)
     mid = 0.5 * (theta_g + theta_h)
     a = np.array([np.cos(mid), np.sin(mid)])

@@ -1,4 +1,4 @@
-"""Two-body tests of every pair-force branch against the formulas (model.md §1.2).
+"""Two-body tests of every pair-force branch against the formulas (docs/science/dem-model.md §1.2).
 
 Each test places two bodies (single discs, or 3-disc rods whose only interacting pair is chosen by
 the geometry) and compares the engine's rod forces with the closed-form law, including across the

@@ -1,6 +1,7 @@
 """Validation on the `default` scene (slow): the study's findings, for acidic, basic, neutral.
 
-These are what the study reports (model.md §1 and §1.6), checked against what the DEM gives —
+These are what the study reports (docs/science/dem-model.md §1 and §1.6), checked against what
+the DEM gives —
 not targets the code was tuned to. Each pattern runs the whole protocol of the `default` scene
 (4–19 min each on a 2-core CPU, measured 2026-11-30); set ``DEM_VALIDATION_DIR`` to a folder holding
 ``default_<pattern>/`` results of ``python -m dem_taichi.protocol default --pattern <pattern>

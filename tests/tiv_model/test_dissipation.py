@@ -27,7 +27,7 @@ def test_preconsolidation_and_ncl_are_inverse():
 
 
 def test_triaxial_yield_function_without_constraint_forces():
-    """(q − pβ)² = (M² − β²) p (p_c − p) on the surface (model.md §2.2)."""
+    """(q − pβ)² = (M² − β²) p (p_c − p) on the surface (docs/science/tiv-model.md §2.2)."""
     rng = np.random.default_rng(0)
     for _ in range(20):
         p, q, pc, beta = rng.uniform(1, 100), rng.uniform(-80, 80), rng.uniform(50, 200), 0.15

@@ -90,7 +90,7 @@ def test_isotropic_axis_moduli_are_exact():
 
 
 def test_triaxial_mapping_of_form_a():
-    """ε̃_a = (1 − 2x/3) ε_a, ε̃_r = (1 + x/3) ε_r with x = ω β² (model.md §2.1)."""
+    """ε̃_a = (1 − 2x/3) ε_a, ε̃_r = (1 + x/3) ε_r with x = ω β² (docs/science/tiv-model.md §2.1)."""
     beta = 0.13
     x = TABLE1.omega * beta**2
     pmat = mapping_matrix(triaxial_fabric(beta), TABLE1, ModelOptions(anisotropy="A"))

@@ -1,4 +1,5 @@
-"""Sanity ranges of model.md §2.4 (Table 1, form A, constraint forces): not a tuning target.
+"""Sanity ranges of docs/science/tiv-model.md §2.4 (Table 1, form A, constraint forces): not a
+tuning target.
 
 K0 ≈ 0.65–0.70 and β ≈ 0.13 at σ_v = 100 kPa, E_h/E_v above 2 by 100 kPa, elastic constant-p
 unloading, and the stated contrast between the anisotropy forms (E_h/E_v ≈ 2–3 for A, ≈ 1.2 B).
