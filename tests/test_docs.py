@@ -31,6 +31,9 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 PACKAGES = ("dem_taichi", "tiv_model", "bridge")
+#: every folder of Python whose docstrings may cite the docs (this file names the outside
+#: documents on purpose, in the pattern that refuses them)
+SOURCES = (*PACKAGES, "tests", "benchmarks", "scripts")
 #: seconds one page's examples may take (the DEM examples compile Taichi kernels first)
 EXAMPLE_TIMEOUT = 300
 
@@ -398,16 +401,20 @@ _CITATION = re.compile(
 )
 
 
+def _source_files() -> list[Path]:
+    """The .py files of :data:`SOURCES`."""
+    return [path for folder in SOURCES for path in sorted((ROOT / folder).rglob("*.py"))]
+
+
 def docstring_citations() -> list[tuple[str, int, str, str | None]]:
-    """(file, line, page, section or None) of every ``docs/<page>.md`` cited in the packages."""
+    """(file, line, page, section or None) of every ``docs/<page>.md`` cited in the sources."""
     found = []
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob("*.py")):
-            text = path.read_text("utf-8")
-            for match in _CITATION.finditer(text):
-                line = text.count("\n", 0, match.start()) + 1
-                rel = path.relative_to(ROOT).as_posix()
-                found.append((rel, line, match.group("page"), match.group("section")))
+    for path in _source_files():
+        text = path.read_text("utf-8")
+        for match in _CITATION.finditer(text):
+            line = text.count("\n", 0, match.start()) + 1
+            rel = path.relative_to(ROOT).as_posix()
+            found.append((rel, line, match.group("page"), match.group("section")))
     return found
 
 
@@ -433,8 +440,8 @@ def test_docstring_citations_resolve():
 def test_no_citation_of_documents_outside_the_repository():
     outside = re.compile(r"(?<![\w/-])(?:model\.md|notes/dem_interfaces\.md|shared/design/)")
     bad = []
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob("*.py")):
+    for path in _source_files():
+        if path.resolve() != Path(__file__).resolve():
             for number, line in enumerate(path.read_text("utf-8").splitlines(), 1):
                 if outside.search(line):
                     bad.append(f"{path.relative_to(ROOT).as_posix()}:{number}: {line.strip()}")
