@@ -11,7 +11,8 @@ cell: how many runs converged (a run that stops on a servo failure writes no
 :func:`dem_taichi.findings.run_findings`: v at A, λ* from A to B (ln v – ln p, DEM stresses),
 λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured where
 E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
-C − B, N under both specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv``.
+C − B, N under both specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv`` (per
+cell) and ``<out>_runs.csv`` (per run).
 """
 
 from __future__ import annotations
@@ -106,6 +107,14 @@ def main(argv: list[str] | None = None) -> int:
         writer = csv.DictWriter(fh, fieldnames=list(table[0]) if table else ["cell"])
         writer.writeheader()
         writer.writerows(table)
+    # one row per run, so that every seed's numbers stay readable beside the cell means
+    fields = ["cell", "seed", "converged", *(key for key, _label, _digits in COLUMNS)]
+    with (
+        args.out.with_name(args.out.name + "_runs").with_suffix(".csv").open("w", newline="") as fh
+    ):
+        writer = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
     print(text)
     return 0
 

@@ -1,0 +1,44 @@
+#!/bin/bash
+# The study's-clay preparation runs of issue 19 (after study_clay_pilots.sh): what makes the gel
+# loose. Base: the `default` scene (300 rods) with F_max = 300, g_max = 0.5 d (k_a = 600), the
+# pilots' slow gas, no radial paths, linear-response probes at every increment. Cells:
+#   RR        rolling resistance (k_r = 4e4, mu_r = 0.5), no aggregation stage
+#   RRagg     RR + aggregation for 200 time units, the gas cooling freely (local damping)
+#   RRaggv    RR + aggregation for 500 time units at a held rms speed 0.5 ("agitated")
+#   aggv      the agitated aggregation without rolling resistance
+#   RRaggv10  RRaggv from a sparser gas (area fraction 0.10) aged 1000 time units
+# Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
+#   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON]
+set -u
+OUT=${1:?usage: study_clay_agitated.sh OUT [PYTHON]}
+PY=${2:-python}
+mkdir -p "$OUT"
+common=(--set particles.initial_speed=0.5 --set protocol.gas_strain_rate=0.002
+        --set 'protocol.radial_stress_ratios=""' --set 'probing.dynamic_states=""'
+        --set probing.every_n_increments=1
+        --set long_range.f_max_edge=300 --set long_range.f_max_inner=300
+        --set long_range.k_a_edge=600 --set long_range.k_a_inner=600)
+rr=(--set contact.rolling_stiffness=4e4 --set contact.rolling_friction=0.5)
+agg=(--set protocol.aggregation=time --set protocol.aggregation_time=200)
+aggv=(--set protocol.aggregation=time --set protocol.aggregation_time=500
+      --set protocol.aggregation_speed=0.5)
+loose=(--set particles.initial_area_fraction=0.1 --set protocol.aggregation=time
+       --set protocol.aggregation_time=1000 --set protocol.aggregation_speed=0.5)
+run() {
+  local name=$1; shift
+  [ -f "$OUT/$name/summary.json" ] && return
+  local start; start=$(date +%s)
+  "$PY" -m dem_taichi protocol default --out "$OUT/$name" --quiet "${common[@]}" "$@" \
+    > "$OUT/$name.log" 2>&1
+  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+}
+run RRagg_s11 "${rr[@]}" "${agg[@]}" --set scene.seed=11
+run RR_s11 "${rr[@]}" --set scene.seed=11
+for seed in 11 2 12; do
+  run RRaggv_s$seed "${rr[@]}" "${aggv[@]}" --set scene.seed=$seed
+  run aggv_s$seed "${aggv[@]}" --set scene.seed=$seed
+done
+for seed in 11 2 12; do
+  run RRaggv10_s$seed "${rr[@]}" "${loose[@]}" --set scene.seed=$seed
+done
