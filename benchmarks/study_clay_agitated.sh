@@ -7,6 +7,12 @@
 #   RRaggv    RR + aggregation for 500 time units at a held rms speed 0.5 ("agitated")
 #   aggv      the agitated aggregation without rolling resistance
 #   RRaggv10  RRaggv from a sparser gas (area fraction 0.10) aged 1000 time units
+# These agitated cells were run (2026-12-02, commits 63aa4c4 and cd4948c) with the thermostat that
+# rescales every velocity by one factor, which pumps free-spinning rods (2 of 5 runs with rolling
+# resistance stopped on an overlap); they keep it here (aggregation_thermostat = "rescale") to
+# reproduce. Then, with the default thermostat since 50fb59a (fresh Maxwell velocities):
+#   Raggv10   the sparser gas aged at rms speed 0.5, no rolling resistance
+#   RRaggv10r the same with rolling resistance
 # Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
 #   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON]
@@ -22,9 +28,10 @@ common=(--set particles.initial_speed=0.5 --set protocol.gas_strain_rate=0.002
 rr=(--set contact.rolling_stiffness=4e4 --set contact.rolling_friction=0.5)
 agg=(--set protocol.aggregation=time --set protocol.aggregation_time=200)
 aggv=(--set protocol.aggregation=time --set protocol.aggregation_time=500
-      --set protocol.aggregation_speed=0.5)
+      --set protocol.aggregation_speed=0.5 --set protocol.aggregation_thermostat=rescale)
 loose=(--set particles.initial_area_fraction=0.1 --set protocol.aggregation=time
        --set protocol.aggregation_time=1000 --set protocol.aggregation_speed=0.5)
+rescale=(--set protocol.aggregation_thermostat=rescale)
 run() {
   local name=$1; shift
   [ -f "$OUT/$name/summary.json" ] && return
@@ -40,5 +47,9 @@ for seed in 11 2 12; do
   run aggv_s$seed "${aggv[@]}" --set scene.seed=$seed
 done
 for seed in 11 2 12; do
-  run RRaggv10_s$seed "${rr[@]}" "${loose[@]}" --set scene.seed=$seed
+  run RRaggv10_s$seed "${rr[@]}" "${loose[@]}" "${rescale[@]}" --set scene.seed=$seed
+done
+for seed in 11 2 12; do
+  run RRaggv10r_s$seed "${rr[@]}" "${loose[@]}" --set scene.seed=$seed
+  run Raggv10_s$seed "${loose[@]}" --set scene.seed=$seed
 done
