@@ -487,3 +487,29 @@ def test_command_line_refuses_a_reduced_tolerance_on_a_neutral_run_in_one_line(t
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "pressure_tolerance_reduced" in lines[0], proc.stderr
     assert not (tmp_path / "x" / "history.nc").exists()
+
+
+@pytest.mark.parametrize("thermostat", ["rescale", "resample"])
+def test_a_blow_up_under_the_rescaling_thermostat_names_it(monkeypatch, thermostat):
+    """A blow-up while ageing with aggregation_thermostat = 'rescale' says that the thermostat
+    pumps energy and to use 'resample' (the engine's message alone blames the time step); under
+    'resample' the engine's message is left as it is."""
+    import dem_taichi.aggregation as stage_module
+    from dem_taichi.failures import BlowUpError
+
+    def blow_up(sim, stage, n):
+        raise BlowUpError("runaway kinetic energy at step 1: reduce dt_safety")
+
+    monkeypatch.setattr(stage_module, "hold", blow_up)
+    scene = attractive_scene(
+        aggregation="time",
+        aggregation_time=3.0,
+        aggregation_speed=0.25,
+        aggregation_thermostat=thermostat,
+    )
+    with pytest.raises(BlowUpError) as info:
+        run_stage(scene)
+    message = str(info.value)
+    assert message.startswith("runaway kinetic energy at step 1")
+    assert ("aggregation_thermostat = 'resample'" in message) == (thermostat == "rescale")
+    assert "\n" not in message
