@@ -177,8 +177,9 @@ class ProtocolConfig(SceneSection):
       ice cube" of velocity rescaling, Harvey, Tan & Cheatham, J. Comput. Chem. 19 (1998) 726,
       doi:10.1002/(SICI)1096-987X(199805)19:7<726::AID-JCC4>3.0.CO;2-S): measured on the
       default scene with F_max = 300 and rolling resistance, one free-spinning rod went from
-      ω = 2 to 50 in 20 checks and the run stopped on an overlap (2 of 5 seeds). Kept to
-      reproduce the runs made with it.
+      ω = 2 to 50 in 20 checks and the run stopped on an overlap (4 of 12 runs with it
+      stopped on a blow-up: ``benchmarks/results/study_clay_agitated.md``). Kept to reproduce
+      the runs made with it.
     - ``pressure_tolerance_reduced`` [unset = use ``pressure_tolerance``]: the A criterion's
       tolerance in units of the attraction, P* = p d / F_max (F_max the larger of [long_range]
       f_max_edge and f_max_inner, d the disc diameter): the tolerance is then P* F_max / d, so
