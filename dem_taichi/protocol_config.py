@@ -535,8 +535,8 @@ class ProtocolConfig(SceneSection):
                 None,
                 lo_open=True,
                 doc=(
-                    "rms velocity component the rods are rescaled to during the ageing "
-                    "(unset: free cooling)"
+                    "rms velocity component the rods are kept at during the ageing, by "
+                    "aggregation_thermostat (unset: free cooling)"
                 ),
                 unit="length/time",
             ),
