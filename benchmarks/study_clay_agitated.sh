@@ -13,6 +13,7 @@
 # reproduce. Then, with the default thermostat since 50fb59a (fresh Maxwell velocities):
 #   Raggv10   the sparser gas aged at rms speed 0.5, no rolling resistance
 #   RRaggv10r the same with rolling resistance
+#   RRfree10  rolling resistance, the sparser gas at initial speed 2.0 cooling freely (no thermostat)
 # Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
 #   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON]
@@ -52,4 +53,9 @@ done
 for seed in 11 2 12; do
   run RRaggv10r_s$seed "${rr[@]}" "${loose[@]}" --set scene.seed=$seed
   run Raggv10_s$seed "${loose[@]}" --set scene.seed=$seed
+done
+for seed in 11 2 12; do
+  run RRfree10_s$seed "${rr[@]}" --set particles.initial_speed=2.0 \
+    --set particles.initial_area_fraction=0.1 --set protocol.aggregation=time \
+    --set protocol.aggregation_time=1000 --set scene.seed=$seed
 done
