@@ -90,7 +90,7 @@ def aggregate(runner) -> dict:
     def thermostat() -> None:
         if speed is None:
             return
-        if (c.aggregation_thermostat or "resample") == "rescale":
+        if details["thermostat"] == "rescale":
             rescale_speed(sim, speed)
         else:
             resample_speed(sim, speed, seed)

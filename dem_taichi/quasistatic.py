@@ -24,7 +24,15 @@ import numpy as np
 from dem_taichi.engine import CellControl, Simulation
 from dem_taichi.measures import Measures
 
-__all__ = ["strain_rate_cap", "relax", "apply_strain", "hold", "rescale_speed", "resample_speed"]
+__all__ = [
+    "strain_rate_cap",
+    "relax",
+    "apply_strain",
+    "hold",
+    "rms_velocity_component",
+    "rescale_speed",
+    "resample_speed",
+]
 
 
 def strain_rate_cap(
@@ -106,6 +114,12 @@ def hold(sim: Simulation, stage: str, n_steps: int) -> Measures:
     return sim.run(n_steps, _control(stage, 0.0, 0.0), output_every=n_steps)
 
 
+def rms_velocity_component(velocity) -> float:
+    """sqrt(<v_x² + v_y²>/2) of the bodies' velocities (0 for none): the measure of
+    ``[particles] initial_speed`` and of ``[protocol] aggregation_speed``."""
+    return float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+
+
 def rescale_speed(sim: Simulation, speed: float) -> float:
     """Scale every body's velocity and angular velocity by s = ``speed`` / (rms velocity
     component, sqrt(<v_x² + v_y²>/2), the measure of ``[particles] initial_speed``) so that it
@@ -117,7 +131,7 @@ def rescale_speed(sim: Simulation, speed: float) -> float:
     """
     state = sim.get_state()
     velocity = state["velocity"]
-    before = float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+    before = rms_velocity_component(velocity)
     if before > 0.0:
         factor = speed / before
         state["velocity"] = velocity * velocity.dtype.type(factor)
@@ -140,7 +154,7 @@ def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
     """
     state = sim.get_state()
     velocity = state["velocity"]
-    before = float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+    before = rms_velocity_component(velocity)
     rng = np.random.Generator(np.random.PCG64([int(seed), 0x41474754, int(sim.step)]))
     drawn = rng.normal(0.0, speed, size=velocity.shape)
     drawn -= drawn.mean(axis=0, keepdims=True)
