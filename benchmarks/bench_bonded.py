@@ -42,9 +42,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_dem import prepared_state, time_case  # noqa: E402
 
-from dem_taichi.config import load_scene  # noqa: E402
-from dem_taichi.engine import BlowUpError, CellControl, Simulation  # noqa: E402
-from dem_taichi.scene import GasState  # noqa: E402
+from dem_taichi.engine.simulation import BlowUpError, CellControl, Simulation  # noqa: E402
+from dem_taichi.scene.config import load_scene  # noqa: E402
+from dem_taichi.scene.geometry import GasState  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

@@ -36,9 +36,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dem_taichi.config import load_scene  # noqa: E402
-from dem_taichi.engine import CellControl, Simulation  # noqa: E402
+from dem_taichi.engine.simulation import CellControl, Simulation  # noqa: E402
 from dem_taichi.kernels import layout  # noqa: E402
+from dem_taichi.scene.config import load_scene  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -51,8 +51,8 @@ def prepared_state(scene, arch, pressure):
     three log-spaced steps to σ_xx = σ_yy = ``pressure`` within 2 % (within the protocol's
     step limits).
     """
-    from dem_taichi.paths import ProtocolRunner
-    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+    from dem_taichi.protocol.paths import ProtocolRunner
+    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
     fast = scene.replace(
         control={"inertial_number_max": 0.05},
@@ -119,7 +119,7 @@ def time_case(scene, arch, execution, deterministic, state, n_steps):
 
 def profile_serial(sim, repeats=200):
     """Per-step cost of the parts of the serial step, timed with the priming kernel."""
-    from dem_taichi.device_arrays import kernel_parameters
+    from dem_taichi.engine.device_arrays import kernel_parameters
     from dem_taichi.kernels.step import prime_forces
 
     state = sim.get_state()
@@ -147,7 +147,7 @@ def profile_serial(sim, repeats=200):
 def stability(args):
     """Largest stable dt_safety: jammed packings (p = pressure) run 20 000 steps at fixed cell
     per value."""
-    from dem_taichi.engine import BlowUpError
+    from dem_taichi.engine.simulation import BlowUpError
 
     rows = []
     for long_range in (False, True):

@@ -46,7 +46,7 @@ MARK = "BENCH_RESULT "
 
 
 def _scene(long_range: bool):
-    from dem_taichi.config import load_scene
+    from dem_taichi.scene.config import load_scene
 
     paper = load_scene("paper").replace(integration={"steps_per_call": 500})
     return paper.replace(particles={"n_rods": N_RODS}, long_range={"enabled": long_range})

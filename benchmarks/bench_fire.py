@@ -11,7 +11,7 @@ The states are built with the engine directly (``default`` scene: 300 rods of 5 
 
 Each state is relaxed twice from the same copy, with the damped dynamics ([integration]
 local_damping α = 0.2) and with FIRE (``relaxation = "fire"``, the defaults of
-``dem_taichi.scene_sections.FIRE_DEFAULTS``), both by ``CellControl.relaxation`` calls of 500
+``dem_taichi.scene.sections.FIRE_DEFAULTS``), both by ``CellControl.relaxation`` calls of 500
 steps (the protocol's ``relax_check_steps``) until UFR < 1e-4 and KE/N < 1 (the protocol's
 ``relax_unbalanced_force`` and ``relax_kinetic_energy_per_rod`` defaults). Reported per case:
 steps, wall time of the relaxation (``run`` calls, measures included; the kernels are compiled
@@ -36,8 +36,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dem_taichi.config import load_scene  # noqa: E402
-from dem_taichi.engine import CellControl, Simulation  # noqa: E402
+from dem_taichi.engine.simulation import CellControl, Simulation  # noqa: E402
+from dem_taichi.scene.config import load_scene  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "fire_relaxation.md"
 UFR, KE_PER_ROD, CHECK = 1e-4, 1.0, 500

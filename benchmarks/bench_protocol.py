@@ -32,9 +32,9 @@ RESULTS = Path(__file__).parent / "results"
 
 
 def packed_simulation(scene_name: str, specific_volume: float, state: str | None):
-    from dem_taichi.config import load_scene
-    from dem_taichi.engine import CellControl, Simulation
-    from dem_taichi.protocol import relax
+    from dem_taichi.engine.simulation import CellControl, Simulation
+    from dem_taichi.protocol.runner import relax
+    from dem_taichi.scene.config import load_scene
 
     t0 = time.perf_counter()
     if state:
@@ -48,8 +48,8 @@ def packed_simulation(scene_name: str, specific_volume: float, state: str | None
 
 
 def bench_scene(scene_name: str, specific_volume: float, state: str | None) -> dict:
-    from dem_taichi.probing import degradation_curve, linear_probe
-    from dem_taichi.protocol_config import probing_settings, protocol_settings
+    from dem_taichi.protocol.probing import degradation_curve, linear_probe
+    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
 
     sim, measures, relaxed, build_seconds = packed_simulation(scene_name, specific_volume, state)
     probing = probing_settings(sim.scene)
@@ -93,7 +93,7 @@ def bench_scene(scene_name: str, specific_volume: float, state: str | None) -> d
 
 
 def bench_protocol(scene_name: str, out: Path) -> dict:
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     result = run_protocol(scene_name, out, progress=True, overwrite=True)
     total = result.total_seconds

@@ -29,8 +29,8 @@ from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dem_taichi.config import load_scene  # noqa: E402
-from dem_taichi.findings import mean_interval, state_findings  # noqa: E402
+from dem_taichi.analysis.findings import mean_interval, state_findings  # noqa: E402
+from dem_taichi.scene.config import load_scene  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 FINDINGS = ("specific_volume", "fabric_deviator", "e_oed_v", "e_oed_h")
@@ -57,7 +57,7 @@ def scenes(stiffness: float, seed: int):
 
 
 def run(args) -> None:
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     out = Path(args.out)
     for seed in args.seeds:
@@ -71,8 +71,8 @@ def run(args) -> None:
 
 
 def findings(folder: Path) -> dict[str, dict[str, float]]:
-    """The compared findings at B and C of one run (:func:`dem_taichi.findings.state_findings`)
-    and the run's wall time."""
+    """The compared findings at B and C of one run
+    (:func:`dem_taichi.analysis.findings.state_findings`) and the run's wall time."""
     seconds = json.loads((folder / "summary.json").read_text())["total_seconds"]
     states = state_findings(folder)
     return {

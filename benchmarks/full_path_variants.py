@@ -34,9 +34,9 @@ Summary of a run (from ``summary.json``, ``relaxed_states.nc`` and ``probes.nc``
 deviator β_yy − β_xx at A, C, B′; K0 = σ_xx/σ_yy at C; E_oed,v, E_oed,h and E_h/E_v of the
 linear-response probes at every probed K0 state, at B, at B′ and on the isotropic path (min–max:
 the control); λ* = −d ln v/d ln p fitted on A + A→B and on A + A→C
-(:func:`dem_taichi.analysis.compressibility_slope`); the p-exponent of E_oed,v along A→B
-(:func:`dem_taichi.analysis.power_law_exponent`, slope of ln E_oed,v against ln p over the A→B
-probes, A excluded: A sits at the jamming transition; also over p ≥ 10 kPa only); E_oed,v/p at
+(:func:`dem_taichi.analysis.arrays.compressibility_slope`); the p-exponent of E_oed,v along A→B
+(:func:`dem_taichi.analysis.arrays.power_law_exponent`, slope of ln E_oed,v against ln p over the
+A→B probes, A excluded: A sits at the jamming transition; also over p ≥ 10 kPa only); E_oed,v/p at
 B, and E_oed,v/p and E_h/E_v interpolated (in ln p) at 100 kPa on A→B and A→C (the same as at
 B and C except for ``k0long``, whose B and C are at 700).
 
@@ -65,15 +65,15 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from dem_taichi.analysis import (
+from dem_taichi.analysis.arrays import (
     compressibility_slope,
     modulus_over_p_at,
     power_law_exponent,
     stiffness_ratio,
 )
-from dem_taichi.config import builtin_scene_path, scene_from_toml
-from dem_taichi.findings import mean_interval, path_arrays, probe_arrays
+from dem_taichi.analysis.findings import mean_interval, path_arrays, probe_arrays
 from dem_taichi.io import open_history, open_probes
+from dem_taichi.scene.config import builtin_scene_path, scene_from_toml
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -214,7 +214,7 @@ def _other_protocol_processes() -> list[str]:
             cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if "dem_taichi protocol" in cmd or "dem_taichi.protocol" in cmd:
+        if "dem_taichi protocol" in cmd or "dem_taichi.protocol.runner" in cmd:
             found.append(f"{entry.name}: {cmd.strip()}")
     return found
 
@@ -326,8 +326,8 @@ def _series(values) -> str:
 
 def summarise_run(folder: Path) -> dict:
     """Numbers of one finished run (see the module docstring). Every finding is computed by the
-    functions of :mod:`dem_taichi.analysis` (the ones the run's report and
-    :func:`dem_taichi.findings.run_findings` use), over the arrays of the run's files."""
+    functions of :mod:`dem_taichi.analysis.arrays` (the ones the run's report and
+    :func:`dem_taichi.analysis.findings.run_findings` use), over the arrays of the run's files."""
     base = _run_row(folder)  # v, fabric at A and C, K0 at C, λ* on A + A→B, wall time
     summary = json.loads((folder / "summary.json").read_text())
     states = path_arrays(summary, open_history(folder / "relaxed_states.nc"))

@@ -1,6 +1,6 @@
 """The speed–accuracy trade, measured: wall time against the error of each finding (issue 13).
 
-Knobs varied one at a time from the ``balanced`` preset (:mod:`dem_taichi.presets`) on the
+Knobs varied one at a time from the ``balanced`` preset (:mod:`dem_taichi.scene.presets`) on the
 isotropic and K0 paths of the validation scene (``default``: 300 rods of 5 discs, seed 2,
 linear-response probes at A, B, C): the inertial-number cap (loading rate), ``dt_safety``,
 the neighbour-list skin, local damping, the servo's stiffness, the relaxation tolerance, f32
@@ -100,7 +100,7 @@ BALANCED_VALUES = {
 # -- reading runs -------------------------------------------------------------------------------
 def member_findings(folder: Path) -> dict:
     """The findings of one finished member (``summary.json`` present) and its cost."""
-    from dem_taichi.findings import run_findings, state_findings
+    from dem_taichi.analysis.findings import run_findings, state_findings
 
     run = run_findings(folder)
     states = state_findings(folder)
@@ -187,7 +187,7 @@ def error(value: float, reference: float, kind: str) -> float:
 # -- the other trades ---------------------------------------------------------------------------
 def replica_rows(rows: list[dict]) -> list[dict]:
     """Seed-to-seed spread of each finding, per n_rods: mean, SD, 95 % half-width, wall time."""
-    from dem_taichi.findings import mean_interval
+    from dem_taichi.analysis.findings import mean_interval
 
     out = []
     for n in sorted({r["n_rods"] for r in rows}):
@@ -441,8 +441,8 @@ def pareto_figure(path, table, replicas, noise) -> None:
 
 # -- commands -----------------------------------------------------------------------------------
 def run(root: Path, scheduler: str | None = None) -> int:
-    from dem_taichi.sweep import run_sweep
-    from dem_taichi.sweep_spec import load_sweep
+    from dem_taichi.sweep.command import run_sweep
+    from dem_taichi.sweep.spec import load_sweep
 
     code = 0
     for file in SWEEPS:

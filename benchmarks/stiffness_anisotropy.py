@@ -31,7 +31,7 @@ The dynamic probes start, as the protocol's, from the state relaxed further to t
 paper run).
 
 Per state it also gives the contact branch-vector ratio Σ l_x²/Σ l_y² and the affine
-normal-spring ratio (the rigid upper bounds, :mod:`dem_taichi.anisotropy`). With
+normal-spring ratio (the rigid upper bounds, :mod:`dem_taichi.response.anisotropy`). With
 ``--dynamic-states`` it runs one-sided and ± dynamic strain probes at those states
 (``--amplitudes``), next to the linear responses (free and stuck).
 
@@ -55,10 +55,10 @@ from pathlib import Path
 
 import numpy as np
 
-from dem_taichi import forcelaw
-from dem_taichi.anisotropy import network_anisotropy
-from dem_taichi.flexible_response import BondStiffness, flexible_response
-from dem_taichi.linear_response import StiffnessVariant, linear_response
+from dem_taichi.physics import forcelaw
+from dem_taichi.response.anisotropy import network_anisotropy
+from dem_taichi.response.flexible import BondStiffness, flexible_response
+from dem_taichi.response.linear import StiffnessVariant, linear_response
 
 KAPPAS = (1.0, 0.3, 0.1, 0.03, 0.01)
 ISOTROPIC_PATHS = ("A", "A_to_B", "B")
@@ -147,9 +147,9 @@ def state_files(run_dir: Path) -> list[tuple[str, str, int, Path]]:
 
 def relaxed_sim(file: Path, ufr: float | None):
     """The stored state in an engine, optionally relaxed further at fixed cell to ``ufr``."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.protocol import relax
-    from dem_taichi.protocol_config import protocol_settings
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.runner import relax
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     sim = Simulation.from_checkpoint(file)
     info = {"relax_steps": 0, "relaxed": True}
@@ -228,9 +228,9 @@ def matrix_rows(label, path, increment, snap, measures, variant_list) -> list[di
 
 def dynamic_rows(label, sim, amplitudes) -> list[dict]:
     """One-sided and ± dynamic probes at the current (relaxed) state, beside the linear ones."""
-    from dem_taichi.probing import dynamic_modulus
-    from dem_taichi.protocol import relax
-    from dem_taichi.protocol_config import probing_settings, protocol_settings
+    from dem_taichi.protocol.probing import dynamic_modulus
+    from dem_taichi.protocol.runner import relax
+    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
 
     probing, protocol = probing_settings(sim.scene), protocol_settings(sim.scene)
     # as the protocol's probes: relax the copy further to the probes' UFR first (a path state

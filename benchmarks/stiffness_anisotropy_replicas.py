@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem_taichi.findings import mean_interval
+from dem_taichi.analysis.findings import mean_interval
 
 KEYS = ("ratio_C", "ratio_Bp", "ratio_B", "fabric_part", "ev_C_rel", "ev_over_p_B", "exponent")
 LABELS = {

@@ -8,9 +8,9 @@ RUNS_DIR holds finished or failed protocol runs named ``<cell>_s<seed>`` (one fo
 as written by the commands in the output's header); runs of one cell are replicas. For every
 cell: how many runs converged (a run that stops on a servo failure writes no
 ``summary.json``), and mean ± 95 % (Student t) over its converged seeds of the findings read by
-:func:`dem_taichi.findings.run_findings`: v at A, λ* from A to B (ln v – ln p, DEM stresses),
-λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured where
-E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
+:func:`dem_taichi.analysis.findings.run_findings`: v at A, λ* from A to B (ln v – ln p, DEM
+stresses), λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured
+where E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
 C − B, N under both specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv`` (per
 cell) and ``<out>_runs.csv`` (per run).
 """
@@ -23,7 +23,7 @@ import math
 import re
 from pathlib import Path
 
-from dem_taichi.findings import mean_interval, run_findings
+from dem_taichi.analysis.findings import mean_interval, run_findings
 
 HERE = Path(__file__).resolve().parent
 

@@ -6,8 +6,8 @@ Usage::
 
 Each RUN_DIR is the output of ``python -m dem_taichi protocol ...`` (its folder name labels
 the row); when it also holds
-``anisotropy.json`` (``python -m dem_taichi.anisotropy RUN_DIR``) the interaction fabrics at C
-are listed. Prints a markdown table per finding and writes it to ``--out``
+``anisotropy.json`` (``python -m dem_taichi anisotropy RUN_DIR``) the interaction fabrics
+at C are listed. Prints a markdown table per finding and writes it to ``--out``
 (default ``benchmarks/results/protocol_validation_summary.md``).
 
 Findings (docs/science/dem-model.md §1, the study): fabric isotropic along A→B within the sampling
@@ -21,12 +21,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from dem_taichi.findings import run_findings
+from dem_taichi.analysis.findings import run_findings
 
 HERE = Path(__file__).resolve().parent
 
-# the findings of one run are computed in dem_taichi.findings (shared with the sweeps' replica
-# statistics, dem_taichi.sweep_results); the old name stays for the callers of this script
+# the findings of one run are computed in dem_taichi.analysis.findings (shared with the sweeps'
+# replica statistics, dem_taichi.sweep.results); the old name stays for the callers of this script
 _run_row = run_findings
 
 
@@ -57,7 +57,7 @@ def table(rows: list[dict]) -> str:
         )
     lines += [
         "",
-        "## Interaction fabrics at C (`python -m dem_taichi.anisotropy`)",
+        "## Interaction fabrics at C (`python -m dem_taichi anisotropy`)",
         "",
         "| run | rod β_yy−β_xx | contact-normal φ_yy−φ_xx | force-weighted | long-range normal | "
         "affine E_h/E_v (normal springs) | contact share of affine E_v |",

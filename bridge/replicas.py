@@ -1,8 +1,8 @@
 """Calibration on replicas: the replica-mean series, and the replica spread in the parameters.
 
 Replicas are protocol runs of the same scene that differ only in the seed (a sweep over
-``scene.seed``, :mod:`dem_taichi.sweep`). A small sample scatters from seed to seed (300 rods:
-E_h/E_v at C from 0.48 to 1.09), so one run's parameters carry that sampling error unseen.
+``scene.seed``, :mod:`dem_taichi.sweep.command`). A small sample scatters from seed to seed (300
+rods: E_h/E_v at C from 0.48 to 1.09), so one run's parameters carry that sampling error unseen.
 :func:`calibrate_replicas` therefore
 
 1. averages the replicas' relaxed path states and probes record by record

@@ -1,7 +1,7 @@
 """Taichi DEM engine for 2D assemblies of rods made of discs (rigid or bonded), with the
 electro-chemical long-range forces of clay.
 
-Importing this package does not initialise Taichi; only :mod:`dem_taichi.runtime` calls
+Importing this package does not initialise Taichi; only :mod:`dem_taichi.engine.runtime` calls
 ``ti.init`` (when a :class:`Simulation` is built). The public API::
 
     from dem_taichi import Simulation, load_scene, run_protocol
@@ -12,18 +12,22 @@ Importing this package does not initialise Taichi; only :mod:`dem_taichi.runtime
 
 from __future__ import annotations
 
+from dem_taichi import _moved
+
 __version__ = "0.1.0"
+
+_moved.install()  # the old module paths (dem_taichi.forcelaw, ...) for one more release
 
 __all__ = ["CellControl", "Scene", "SceneError", "Simulation", "load_scene", "run_protocol"]
 
 #: public name -> module that defines it (imported on first use: ``import dem_taichi`` stays light)
 _EXPORTS = {
-    "CellControl": "dem_taichi.control",
-    "Scene": "dem_taichi.config",
-    "SceneError": "dem_taichi.config",
-    "Simulation": "dem_taichi.engine",
-    "load_scene": "dem_taichi.config",
-    "run_protocol": "dem_taichi.protocol",
+    "CellControl": "dem_taichi.engine.control",
+    "Scene": "dem_taichi.scene.config",
+    "SceneError": "dem_taichi.scene.config",
+    "Simulation": "dem_taichi.engine.simulation",
+    "load_scene": "dem_taichi.scene.config",
+    "run_protocol": "dem_taichi.protocol.runner",
 }
 
 

@@ -191,7 +191,7 @@ def run_tiv_demo(out_dir: Path, smoke: bool) -> dict:
 
 def run_dem_demo(out_dir: Path, scene: str) -> dict:
     """Run the DEM virtual experiments of ``scene`` (needs Taichi); returns the run summary."""
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     _log(f"DEM virtual experiments on scene '{scene}' (CPU) -> {out_dir}")
     started = time.perf_counter()

@@ -1,7 +1,7 @@
 """Bad inputs across the command lines (issue 11): each is refused with its exit code, one line
 on stderr naming what is wrong (the words checked), and no traceback.
 
-Entry points: ``python -m dem_taichi run|protocol`` (:func:`dem_taichi.cli.main`),
+Entry points: ``python -m dem_taichi run|protocol`` (:func:`dem_taichi.cli.commands.main`),
 ``python -m dem_taichi.protocol``, ``python -m dem_taichi.sweep``, ``python -m tiv_model`` and
 ``python -m bridge.pipeline``, called in process (their ``main`` returns the exit code) and, for
 a few, as real processes. ``ISSUE22_CASES`` (issue 22) were accepted, or blamed on the wrong key,
@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dem_taichi.config import load_scene, scene_to_toml
+from dem_taichi.scene.config import load_scene, scene_to_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = tomllib.loads(scene_to_toml(load_scene("smoke")))
@@ -440,15 +440,15 @@ CASES = DEM_CASES + TIV_CASES + BRIDGE_CASES + ISSUE22_CASES
 
 def entry(name: str):
     if name == "dem":
-        from dem_taichi.cli import main
+        from dem_taichi.cli.commands import main
     elif name == "protocol":
-        from dem_taichi.protocol import main
+        from dem_taichi.protocol.runner import main
     elif name == "tiv":
         from tiv_model.cli import main
     elif name == "sweep":
-        from dem_taichi.sweep import main
+        from dem_taichi.sweep.command import main
     elif name == "anisotropy":
-        from dem_taichi.anisotropy import main
+        from dem_taichi.response.anisotropy import main
     else:
         from bridge.pipeline import main
     return main
@@ -479,8 +479,8 @@ def test_bad_input_is_one_clear_line(case, tmp_path, monkeypatch, capsys):
 
 
 def test_debug_shows_the_error_itself(tmp_path, monkeypatch):
-    from dem_taichi.cli import main
-    from dem_taichi.config import SceneError
+    from dem_taichi.cli.commands import main
+    from dem_taichi.scene.config import SceneError
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "scene.toml").write_text("")
@@ -493,7 +493,7 @@ def test_debug_shows_the_error_itself(tmp_path, monkeypatch):
     [
         (["dem_taichi", "run", "scene.toml", "--out", "o"], "is empty"),
         (["dem_taichi", "protocol", "scene.toml", "--out", "o", "--quiet"], "is empty"),
-        (["dem_taichi.protocol", "scene.toml", "--out", "o"], "is empty"),
+        (["dem_taichi.protocol.runner", "scene.toml", "--out", "o"], "is empty"),
         (["tiv_model", "k0", "--sigma-v-max", "1", "--out", "k0.nc"], "greater than --p0"),
         (["bridge.pipeline", "--history", "none.nc", "--out", "b"], "no such file"),
     ],
@@ -522,12 +522,12 @@ def _api_cases():
     from bridge.pipeline import calibrate_from_results, calibrate_on_replicas
     from bridge.series import SeriesError
     from dem_taichi import Simulation, load_scene, run_protocol
-    from dem_taichi.config import SceneError, scene_with_overrides
-    from dem_taichi.cost import estimate_cost
     from dem_taichi.io.run_directory import RunDirectoryError
-    from dem_taichi.scene_options import with_preset
-    from dem_taichi.sweep_results import open_sweep
-    from dem_taichi.sweep_spec import SweepError, sweep_from_toml
+    from dem_taichi.protocol.cost import estimate_cost
+    from dem_taichi.scene.config import SceneError, scene_with_overrides
+    from dem_taichi.scene.options import with_preset
+    from dem_taichi.sweep.results import open_sweep
+    from dem_taichi.sweep.spec import SweepError, sweep_from_toml
     from tiv_model import TABLE1, ModelOptions, drivers
     from tiv_model.errors import ParameterError
 
@@ -552,7 +552,7 @@ def _api_cases():
         return history, Convention(50.0)
 
     from bridge.series import path_series
-    from dem_taichi.sweep_spec import load_sweep
+    from dem_taichi.sweep.spec import load_sweep
 
     grid = (
         '[sweep]\nscene = "smoke"\n[sweep.grid]\n'

@@ -2,8 +2,11 @@
 
 - ``tiv_model`` imports neither taichi nor ``dem_taichi`` nor ``bridge``;
 - ``bridge`` never imports taichi nor the engine (only ``dem_taichi.io`` is allowed);
-- ``import dem_taichi`` does not initialise Taichi: only ``dem_taichi/runtime.py`` calls
-  ``ti.init``.
+- ``import dem_taichi`` does not initialise Taichi: only ``dem_taichi/engine/runtime.py`` calls
+  ``ti.init``;
+- inside ``dem_taichi`` the role subpackages are layered (:data:`LAYERS`): a module imports its
+  own subpackage and those of lower layers, never one beside or above its own;
+- no import loops in any package.
 """
 
 import ast
@@ -53,7 +56,7 @@ def test_bridge_reads_results_not_the_engine():
 def test_only_runtime_initialises_taichi():
     callers = []
     for path in sorted((ROOT / "dem_taichi").rglob("*.py")):
-        if "ti.init(" in path.read_text() and path.name != "runtime.py":
+        if "ti.init(" in path.read_text() and path != ROOT / "dem_taichi/engine/runtime.py":
             callers.append(str(path.relative_to(ROOT)))
     assert callers == []
 
@@ -76,7 +79,8 @@ def test_import_dem_taichi_does_not_init_taichi():
 def test_engine_and_protocol_import_without_taichi():
     """For type use (annotations, isinstance) the engine and the protocol load without Taichi;
     it is imported when a simulation is built."""
-    code = "import sys, dem_taichi.engine, dem_taichi.protocol, dem_taichi.probing\n"
+    code = "import sys, dem_taichi.engine.simulation, dem_taichi.protocol.runner\n"
+    code += "import dem_taichi.protocol.probing\n"
     code += "assert 'taichi' not in sys.modules, 'taichi was imported'\n"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
 
@@ -163,3 +167,109 @@ def test_import_loop_detector_finds_a_loop():
 def test_no_import_loops(package):
     """No module of the package imports, even lazily, one that imports it back."""
     assert import_loops(module_imports(package)) == []
+
+
+#: The role subpackages of ``dem_taichi``, bottom layer first (ARCHITECTURE.md). A module may
+#: import its own subpackage and the subpackages of lower layers; not a subpackage of its own
+#: layer (those stay independent of each other) and not one above.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("physics", "kernels"),  # the numpy reference laws; the Taichi kernels
+    ("scene", "io"),  # what a run is asked to do; the files it writes and reads
+    ("engine", "analysis"),  # the simulation; numpy analysis of its results
+    ("response",),  # linear response of a static network, anisotropy
+    ("protocol",),  # the virtual experiments
+    ("sweep",),  # many protocol runs on Dask
+    ("cli",),  # the command line
+)
+
+#: The modules of ``dem_taichi`` outside the layers, and what of the package each may import:
+#: the package's face (version, lazy public names), the old paths' table, the entry point.
+OUTSIDE_LAYERS = {
+    "dem_taichi": {"dem_taichi._moved"},
+    "dem_taichi._moved": set(),
+    "dem_taichi.__main__": None,  # None: anything (it only calls the command line)
+}
+
+
+def layer_violations(
+    graph: dict[str, set[str]],
+    layers: tuple[tuple[str, ...], ...] = LAYERS,
+    outside: dict[str, set[str] | None] = OUTSIDE_LAYERS,
+    package: str = "dem_taichi",
+) -> list[str]:
+    """Every import of ``graph`` (module -> modules it imports, :func:`module_imports`) that
+    breaks the layering: a module outside the subpackages and :data:`OUTSIDE_LAYERS`, an import
+    of a subpackage beside or above the importer's, or an outside module importing what it may
+    not. Any module may import the ones of ``outside`` that import nothing of the package."""
+    level = {sub: i for i, names in enumerate(layers) for sub in names}
+    free = {name for name, allowed in outside.items() if allowed == set()} | {package}
+    bad = []
+
+    def subpackage(module: str) -> str | None:
+        parts = module.split(".")
+        return parts[1] if len(parts) > 1 and parts[1] in level else None
+
+    for module, targets in sorted(graph.items()):
+        here = subpackage(module)
+        if here is None:
+            if module not in outside:
+                bad.append(f"{module} is in no layer (put it in a role subpackage)")
+                continue
+            allowed = outside[module]
+            for target in sorted(targets):
+                if allowed is not None and target not in allowed:
+                    bad.append(f"{module} imports {target} (it may import {sorted(allowed)})")
+            continue
+        for target in sorted(targets):
+            there = subpackage(target)
+            if there is None:
+                if target not in free:
+                    bad.append(f"{module} imports {target}, which is in no layer")
+            elif there != here and level[there] >= level[here]:
+                where = "beside" if level[there] == level[here] else "above"
+                bad.append(f"{module} imports {target}: {there} is {where} {here}")
+    return sorted(bad)
+
+
+def test_layer_check_catches_imports_up_and_sideways():
+    graph = {
+        "dem_taichi.physics.forcelaw": {"dem_taichi.engine.simulation"},  # up
+        "dem_taichi.engine.simulation": {"dem_taichi.physics.forcelaw", "dem_taichi.engine.state"},
+        "dem_taichi.engine.state": {"dem_taichi.analysis.report", "dem_taichi._moved"},  # beside
+        "dem_taichi.analysis.report": {"dem_taichi.io.schema", "dem_taichi"},
+        "dem_taichi.io.schema": set(),
+        "dem_taichi.helpers": set(),  # a flat module again
+        "dem_taichi": {"dem_taichi.engine.simulation"},  # the face imports eagerly
+        "dem_taichi._moved": set(),
+    }
+    assert layer_violations(graph) == [
+        "dem_taichi imports dem_taichi.engine.simulation (it may import ['dem_taichi._moved'])",
+        "dem_taichi.engine.state imports dem_taichi.analysis.report: analysis is beside engine",
+        "dem_taichi.helpers is in no layer (put it in a role subpackage)",
+        "dem_taichi.physics.forcelaw imports dem_taichi.engine.simulation: engine is above physics",
+    ]
+    ok = {"dem_taichi.cli.commands": {"dem_taichi.sweep.command", "dem_taichi.physics.bonds"}}
+    assert layer_violations(ok) == []
+
+
+def test_every_subpackage_has_a_layer():
+    found = {p.parent.name for p in (ROOT / "dem_taichi").glob("*/__init__.py")}
+    assert found == {sub for names in LAYERS for sub in names}
+
+
+def test_dem_taichi_imports_point_down_the_layers():
+    """No module of ``dem_taichi`` imports, even lazily or for type checking, a subpackage
+    beside or above its own; no module stays outside the subpackages but the listed few."""
+    assert layer_violations(module_imports("dem_taichi")) == []
+
+
+def test_subpackages_form_no_loop():
+    graph = module_imports("dem_taichi")
+    by_package: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        here = ".".join(module.split(".")[:2])
+        by_package.setdefault(here, set()).update(".".join(t.split(".")[:2]) for t in targets)
+    for here, targets in by_package.items():
+        targets.discard(here)
+        targets &= set(by_package)
+    assert import_loops(by_package) == []

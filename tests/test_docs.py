@@ -169,13 +169,15 @@ def test_links_of_the_exposed_repository_files():
         "[guide](docs/guide/engine.md#rigid-or-bonded-rods) "
         "[bench](benchmarks/results/speed_accuracy.md) "
         "![figure](benchmarks/results/speed_accuracy.png) "
-        "[code](dem_taichi/config.py) [web](https://example.org/x.md) [here](#section)"
+        "[code](dem_taichi/scene/config.py) [web](https://example.org/x.md) [here](#section)"
     )
     out = hooks.rewrite_repository_links(text, ROOT / "ARCHITECTURE.md", "project/architecture.md")
     assert "[guide](../guide/engine.md#rigid-or-bonded-rods)" in out
     assert "[bench](../results/files/speed_accuracy.md)" in out
     assert "![figure](../results/files/speed_accuracy.png)" in out
-    assert "code (`dem_taichi/config.py`)" in out and "(dem_taichi/config.py)" not in out
+    assert (
+        "code (`dem_taichi/scene/config.py`)" in out and "(dem_taichi/scene/config.py)" not in out
+    )
     assert "[web](https://example.org/x.md)" in out and "[here](#section)" in out
     missing = "![plot](no_such_figure.png) [table](speed_accuracy.csv)"
     out = hooks.drop_missing_links(missing, hooks.RESULTS / "report.md")
@@ -216,7 +218,7 @@ def _expected_default(f: dataclasses.Field) -> str:
 
 
 def test_scene_reference_lists_every_key_with_its_default():
-    from dem_taichi import config
+    from dem_taichi.scene import config
 
     sections = {**config._CORE_SECTIONS, **config._EXTENSION_SECTIONS}
     assert set(hooks.scene_sections()) == set(sections)
@@ -246,7 +248,7 @@ def test_every_scene_key_has_a_description_and_a_unit():
 
 
 def test_scene_reference_states_ranges_and_choices():
-    from dem_taichi.scene_sections import Contact, Integration
+    from dem_taichi.scene.sections import Contact, Integration
 
     rows = {row["key"]: row for row in hooks.scene_rows(Contact)}
     assert rows["e_n"]["allowed"] == "(0.0, 1.0]"

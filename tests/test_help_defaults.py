@@ -9,7 +9,9 @@ import pytest
 
 def _parsers():
     from bridge import pipeline
-    from dem_taichi import cli, protocol, sweep
+    from dem_taichi.cli import commands as cli
+    from dem_taichi.protocol import runner as protocol
+    from dem_taichi.sweep import command as sweep
     from tiv_model import cli as tiv_cli
 
     return {

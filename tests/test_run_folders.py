@@ -22,7 +22,6 @@ from pathlib import Path
 
 import pytest
 
-from dem_taichi.config import load_scene, scene_to_toml
 from dem_taichi.io.run_directory import (
     RUN_LOCK,
     RUN_RECORD,
@@ -30,6 +29,7 @@ from dem_taichi.io.run_directory import (
     RunLockedError,
     start_run,
 )
+from dem_taichi.scene.config import load_scene, scene_to_toml
 from tests.sentinels import one_line, sentinel, survived
 from tiv_model.command_line import EXIT_DISK_FULL, EXIT_USAGE, run_command
 
@@ -39,7 +39,7 @@ SMOKE = scene_to_toml(load_scene("smoke"))
 
 def dem(*args: str) -> int:
     """``python -m dem_taichi ARGS`` in this process."""
-    from dem_taichi.cli import main
+    from dem_taichi.cli.commands import main
 
     return main(list(args))
 
@@ -333,7 +333,7 @@ def test_a_live_second_process_is_refused_until_it_ends(tmp_path, capsys):
 
 
 def test_the_lock_is_released_after_an_error(tmp_path, monkeypatch, capsys):
-    import dem_taichi.cli as cli
+    import dem_taichi.cli.commands as cli
 
     def broken(*args, **kwargs):
         raise ValueError("a writer failed")
@@ -432,7 +432,7 @@ def no_space(*args, **kwargs):
 
 
 def test_a_full_disk_in_a_dem_run_is_exit_code_4(tmp_path, monkeypatch, capsys):
-    import dem_taichi.cli as cli
+    import dem_taichi.cli.commands as cli
 
     monkeypatch.setattr(cli, "replace_file", no_space)
     out = tmp_path / "run"

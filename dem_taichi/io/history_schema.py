@@ -260,7 +260,7 @@ BONDED_HISTORY_VARIABLES: tuple[Variable, ...] = (
         "elastic energy of the intra-rod bonds",
         dem_units="energy",
         definition="sum over intact bonds of 1/2 (k_bn e_n^2 + k_bt e_t^2 + kappa_b e_b^2) "
-        "(stretch, shear and bending measures of dem_taichi.bonds)",
+        "(stretch, shear and bending measures of dem_taichi.physics.bonds)",
     ),
     Variable(
         "n_broken_bonds",

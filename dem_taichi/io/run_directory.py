@@ -1,8 +1,8 @@
 """Run directories: one run per directory, named by a run id and the hash of its scene.
 
-A run (``python -m dem_taichi run`` or ``protocol``, :func:`dem_taichi.protocol.run_protocol`)
-claims its output directory: it takes the directory's lock (:data:`RUN_LOCK`) and writes
-``run.json`` (atomically):
+A run (``python -m dem_taichi run`` or ``protocol``,
+:func:`dem_taichi.protocol.runner.run_protocol`) claims its output directory: it takes the
+directory's lock (:data:`RUN_LOCK`) and writes ``run.json`` (atomically):
 
 - ``run_id``: a random 32-hex-digit id, also written into the history's global attributes;
 - ``scene_sha256``: SHA-256 of the full scene TOML (``scene_to_toml``: every key, defaults

@@ -60,7 +60,7 @@ RUN_FILE_PATTERNS = (
 
 
 def scene_sha256(scene_toml: str) -> str:
-    """SHA-256 (hex) of a scene's full TOML text (``dem_taichi.config.scene_to_toml``)."""
+    """SHA-256 (hex) of a scene's full TOML text (``dem_taichi.scene.config.scene_to_toml``)."""
     return hashlib.sha256(scene_toml.encode("utf-8")).hexdigest()
 
 

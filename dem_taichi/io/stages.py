@@ -9,7 +9,7 @@ from types import MappingProxyType
 #: (docs/science/dem-model.md §1.6); stages
 #: added later are appended at the end so the codes of the others keep their values (files
 #: written before read the same): "aggregation" is the optional gas-ageing stage before
-#: "isotropic_to_A" (:meth:`dem_taichi.paths.ProtocolRunner.aggregate`).
+#: "isotropic_to_A" (:meth:`dem_taichi.protocol.paths.ProtocolRunner.aggregate`).
 STAGE_CODES: Mapping[str, int] = MappingProxyType(
     {
         "gas": 0,

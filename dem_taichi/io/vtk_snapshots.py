@@ -84,8 +84,9 @@ def disc_point_data(
 
 
 def simulation_snapshot(sim) -> dict:
-    """What :func:`write_snapshot` needs, read from a :class:`dem_taichi.engine.Simulation` now
-    (copies; call it when the state is reached)."""
+    """What :func:`write_snapshot` needs, read from a
+    :class:`dem_taichi.engine.simulation.Simulation` now (copies; call it when the state is
+    reached)."""
     state = sim.get_state()
     return {
         "disc_positions": sim.disc_positions(),
@@ -146,7 +147,7 @@ def write_snapshot(
 def write_simulation_snapshot(
     path: str | Path, sim, stage: str, fields: Mapping[str, float] | None = None
 ) -> Path:
-    """Write the snapshot of a :class:`dem_taichi.engine.Simulation` as it is now."""
+    """Write the snapshot of a :class:`dem_taichi.engine.simulation.Simulation` as it is now."""
     return write_snapshot(path, **simulation_snapshot(sim), stage=stage, fields=fields)
 
 

@@ -10,5 +10,5 @@
 - :mod:`.step`: the fused multi-step kernel and the per-step parallel kernels;
 - :mod:`.measures`: the measure kernel.
 
-Kernel parameters are named after the device arrays of :mod:`dem_taichi.device_arrays`.
+Kernel parameters are named after the device arrays of :mod:`dem_taichi.engine.device_arrays`.
 """

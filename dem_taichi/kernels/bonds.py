@@ -18,7 +18,7 @@ torques are −∂U/∂q with U = ½ Σ k_e e², the damping through the same Ja
     τ_h = −(½ Λ_n e_t − ½ Λ_t (d·a_m) + Λ_b),   τ_g = −(½ Λ_n e_t − ½ Λ_t (d·a_m) − Λ_b)
 
 (linear and angular momentum conserved exactly). The same law in numpy is
-:func:`dem_taichi.bonds.bond_forces` (the reference the kernels are tested against).
+:func:`dem_taichi.physics.bonds.bond_forces` (the reference the kernels are tested against).
 
 Breakage (optional, the MercuryDPM rule): when the elastic tension k_bn e_n exceeds F_b the
 bond breaks for good (``bond_intact[g] = 0``); from then on the two discs interact like any

@@ -10,7 +10,7 @@ from dem_taichi.kernels.layout import (
 )
 
 # kernel array parameters carry their dimension (checked at launch; the table of
-# dem_taichi.device_arrays gives each array's, and a test checks the two agree)
+# dem_taichi.engine.device_arrays gives each array's, and a test checks the two agree)
 nd1 = ti.types.ndarray(ndim=1)
 nd2 = ti.types.ndarray(ndim=2)
 nd3 = ti.types.ndarray(ndim=3)

@@ -1,5 +1,5 @@
 """Pair force laws as Taichi functions (docs/science/dem-model.md §1.2, §1.8), each the
-scalar form of the numpy reference of the same name in :mod:`dem_taichi.forcelaw`.
+scalar form of the numpy reference of the same name in :mod:`dem_taichi.physics.forcelaw`.
 
 Contact: normal spring-dashpot f_c = k_n δ − γ_n v_n (``contact_normal_force``); tangential
 spring-dashpot F_t = −k_t ξ − γ_t v_t capped at μ|f_c|, the spring ξ reset to the cap on slip

@@ -39,7 +39,7 @@ P_BOND_GN = 24  # bond stretch damping γ_bn
 P_BOND_GT = 25  # bond shear damping γ_bt
 P_BOND_GB = 26  # bond bending damping γ_bb
 P_BOND_BREAK = 27  # breakage tension F_b (≤ 0: unbreakable)
-# rolling resistance at inter-rod contacts (dem_taichi.rolling; unused without it)
+# rolling resistance at inter-rod contacts (dem_taichi.physics.rolling; unused without it)
 P_ROLL_K = 28  # κ_r = k_r d_eff², moment per radian of the rolling spring ψ
 P_ROLL_G = 29  # η_r = γ_r d_eff², moment damping per unit relative rotation rate
 P_ROLL_CAP = 30  # μ_r d_eff: the rolling moment cap per unit contact force

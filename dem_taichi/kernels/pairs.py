@@ -2,7 +2,7 @@
 
 ``pair_interaction`` evaluates contact (normal spring-dashpot, tangential spring capped by
 Coulomb friction), long-range and van der Waals forces of one list entry (the laws of
-:mod:`dem_taichi.kernels.laws`, mirrored in numpy by :mod:`dem_taichi.forcelaw`);
+:mod:`dem_taichi.kernels.laws`, mirrored in numpy by :mod:`dem_taichi.physics.forcelaw`);
 ``disc_forces`` sums them over a disc's list (atomic scatter, serial or per-rod gather).
 """
 
@@ -75,7 +75,7 @@ def pair_interaction(
     by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with their
     bond intact do not interact (:mod:`dem_taichi.kernels.bonds`). Rolling resistance
     (``phys.rolling``): the rolling spring ψ of the entry adds the couple M (on i; −M on j) of
-    :mod:`dem_taichi.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
+    :mod:`dem_taichi.physics.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
     """
     lx = cell[C_LX]
     ly = cell[C_LY]

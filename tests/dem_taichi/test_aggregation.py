@@ -18,9 +18,9 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from dem_taichi.config import SceneError, load_scene, scene_from_toml, scene_to_toml
 from dem_taichi.io.schema import stage_code
-from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig, protocol_settings
+from dem_taichi.scene.config import SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig, protocol_settings
 
 ATTRACTIVE = {"f_max_edge": 100.0, "f_max_inner": 100.0, "k_a_edge": 200.0, "k_a_inner": 200.0}
 
@@ -46,8 +46,8 @@ class Records:
 
 def run_stage(scene, progress: bool = False):
     """A fresh simulation of ``scene`` after its aggregation stage: (runner, details, records)."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.paths import ProtocolRunner
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.paths import ProtocolRunner
 
     sim = Simulation(scene)
     history = Records()
@@ -62,7 +62,7 @@ def run_stage(scene, progress: bool = False):
 def test_stage_is_deterministic_bit_for_bit():
     """Two runs of the stage (compression, ageing with the speed rescaled at every check) from
     the same scene end in the same state bit for bit, with the same records."""
-    from dem_taichi.state import states_equal
+    from dem_taichi.engine.state import states_equal
 
     scene = attractive_scene(
         aggregation="time",
@@ -83,8 +83,8 @@ def test_stage_is_deterministic_bit_for_bit():
 def test_rescale_speed_sets_the_rms_velocity_component():
     """rescale_speed scales velocities and angular velocities by one factor so that
     sqrt(<v_x² + v_y²>/2) becomes the speed asked; it returns the rms before."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.quasistatic import rescale_speed
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.quasistatic import rescale_speed
 
     sim = Simulation(attractive_scene())
     before = sim.get_state()
@@ -107,7 +107,7 @@ def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermo
     """With aggregation_speed the thermostat (a fresh draw by default, or the rescale) runs at
     the start of the ageing and after every check but the last: the gas keeps the rms speed
     asked."""
-    import dem_taichi.aggregation as stage_module  # where the stage calls its thermostat
+    import dem_taichi.protocol.aggregation as stage_module  # where the stage calls its thermostat
 
     calls: list[float] = []
     original = getattr(stage_module, function)
@@ -135,8 +135,8 @@ def test_resample_speed_draws_maxwell_velocities_seeded_by_seed_and_step():
     """resample_speed draws v ~ N(0, s²) per component with the mean removed and ω ~ N(0, s² M/I)
     from PCG64 seeded by (seed, 0x41474754, step): the same draw as written out here, whatever
     the velocities before (no memory: a spinning rod is not pumped), and zero total momentum."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.quasistatic import resample_speed
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.quasistatic import resample_speed
 
     sim = Simulation(attractive_scene())
     state = sim.get_state()
@@ -267,7 +267,7 @@ def protocol_scene():
 
 @pytest.fixture(scope="module")
 def full_run(tmp_path_factory):
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     return run_protocol(protocol_scene(), tmp_path_factory.mktemp("aggregation_run"))
 
@@ -340,8 +340,9 @@ def test_protocol_records_the_aggregation_stage(full_run):
 def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run, tmp_path):
     """Stopped (as Ctrl-C would) at the third check of the ageing: nothing is saved, the
     resume starts again from the gas and ends with the uninterrupted run's outputs."""
-    import dem_taichi.aggregation as stage_module  # where the stage calls hold, rescale_speed
-    from dem_taichi.protocol import run_protocol
+    # where the stage calls hold, rescale_speed
+    import dem_taichi.protocol.aggregation as stage_module
+    from dem_taichi.protocol.runner import run_protocol
 
     original = stage_module.hold
     calls = []
@@ -369,8 +370,8 @@ def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run,
 def test_run_interrupted_after_a_resumes_to_the_same_outputs(full_run, tmp_path):
     """Stopped at the start of the branch from A: state A (with the aggregation's records and
     log) is saved; the resume runs A→B only and ends with the uninterrupted run's outputs."""
-    import dem_taichi.branches as branches
-    from dem_taichi.protocol import run_protocol
+    import dem_taichi.protocol.branches as branches
+    from dem_taichi.protocol.runner import run_protocol
 
     original = branches.run_branch_on
 
@@ -494,8 +495,8 @@ def test_a_blow_up_under_the_rescaling_thermostat_names_it(monkeypatch, thermost
     """A blow-up while ageing with aggregation_thermostat = 'rescale' says that the thermostat
     pumps energy and to use 'resample' (the engine's message alone blames the time step); under
     'resample' the engine's message is left as it is."""
-    import dem_taichi.aggregation as stage_module
-    from dem_taichi.failures import BlowUpError
+    import dem_taichi.protocol.aggregation as stage_module
+    from dem_taichi.engine.failures import BlowUpError
 
     def blow_up(sim, stage, n):
         raise BlowUpError("runaway kinetic energy at step 1: reduce dt_safety")

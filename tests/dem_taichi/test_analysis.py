@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dem_taichi.analysis import (
+from dem_taichi.analysis.arrays import (
     detect_transition,
     elastic_plateau,
     fabric_sampling_noise,

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from dem_taichi.anisotropy import network_anisotropy
-from dem_taichi.linear_response import NetworkSnapshot
+from dem_taichi.response.anisotropy import network_anisotropy
+from dem_taichi.response.linear import NetworkSnapshot
 
 K_N = 1.0e3
 
@@ -70,8 +70,8 @@ def test_oblique_long_range_pairs_split_by_direction():
 @pytest.fixture(scope="module")
 def state_folder(tmp_path_factory):
     """A folder with one labelled state (the smoke scene's gas, saved as state_A.npz)."""
-    from dem_taichi.config import load_scene
-    from dem_taichi.engine import Simulation
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.scene.config import load_scene
 
     folder = tmp_path_factory.mktemp("anisotropy")
     Simulation(load_scene("smoke")).save_checkpoint(folder / "state_A.npz")
@@ -87,7 +87,7 @@ def _one_line(err: str) -> str:
 def test_an_existing_table_is_refused_unless_overwrite(state_folder, capsys):
     import json
 
-    from dem_taichi.anisotropy import main
+    from dem_taichi.response.anisotropy import main
 
     target = state_folder / "anisotropy.json"
     target.unlink(missing_ok=True)
@@ -107,7 +107,7 @@ def test_an_existing_table_is_refused_unless_overwrite(state_folder, capsys):
 def test_a_link_as_the_table_is_refused_and_replaced_never_written_through(
     state_folder, tmp_path, capsys
 ):
-    from dem_taichi.anisotropy import main
+    from dem_taichi.response.anisotropy import main
 
     precious = tmp_path / "precious.json"
     precious.write_text("keep me")
@@ -125,7 +125,7 @@ def test_a_link_as_the_table_is_refused_and_replaced_never_written_through(
 
 
 def test_a_folder_without_states_is_one_line(tmp_path, capsys):
-    from dem_taichi.anisotropy import main
+    from dem_taichi.response.anisotropy import main
 
     assert main([str(tmp_path)]) == 2
     assert "no state_*.npz" in _one_line(capsys.readouterr().err)

@@ -1,7 +1,7 @@
 """Bonded rods (docs/science/dem-model.md §1.7, issue 10): the bond law, a single chain against
 the discrete-chain solution, conservation, breakage, resume, execution modes and precision.
 
-- the kernels' bond forces equal the numpy law (:mod:`dem_taichi.bonds`), which is the exact
+- the kernels' bond forces equal the numpy law (:mod:`dem_taichi.physics.bonds`), which is the exact
   gradient of its energy (finite differences) and conserves linear and angular momentum;
 - a free chain vibrates at the eigenfrequencies of the discrete chain (its bending and axial
   stiffness, within 1 %), whose static compliances are the closed forms (Castigliano);
@@ -17,7 +17,9 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.bonds import (
+from dem_taichi.engine.simulation import Simulation
+from dem_taichi.engine.state import states_equal
+from dem_taichi.physics.bonds import (
     BondParameters,
     bond_forces,
     chain_bonds,
@@ -25,12 +27,10 @@ from dem_taichi.bonds import (
     chain_max_frequency,
     disc_inertia,
 )
-from dem_taichi.config import SceneError, scene_from_toml
-from dem_taichi.engine import Simulation
-from dem_taichi.flexible_response import BondStiffness, three_point_compliance
-from dem_taichi.forcelaw import cross
-from dem_taichi.scene import GasState
-from dem_taichi.state import states_equal
+from dem_taichi.physics.forcelaw import cross
+from dem_taichi.response.flexible import BondStiffness, three_point_compliance
+from dem_taichi.scene.config import SceneError, scene_from_toml
+from dem_taichi.scene.geometry import GasState
 
 CHAIN = """
 [scene]
@@ -150,7 +150,7 @@ def test_bond_law_is_the_gradient_of_its_energy_and_conserves_momentum():
 
 
 def test_discrete_chain_compliance_is_the_closed_form():
-    """The chain Hessian (dem_taichi.bonds) against Castigliano's three-point and axial
+    """The chain Hessian (dem_taichi.physics.bonds) against Castigliano's three-point and axial
     compliance of the bond law (flexible_response): two independent derivations."""
     for n in (3, 5, 9):
         k_n, k_t, k_b = 1e4, 2e3, 3e3
@@ -357,10 +357,10 @@ def test_stiff_bonds_tend_to_the_rigid_packing():
     moduli approach the rigid ones as s grows (measured: E_oed,v 38 %, 82 %, 93 % of the rigid
     value at s = 1, 10, 100). The protocol-level comparison over seeds is
     benchmarks/bonded_rigid_limit.py (results/bonded_rigid_limit.md)."""
-    from dem_taichi.config import load_scene
-    from dem_taichi.engine import CellControl
-    from dem_taichi.probing import linear_probe
-    from dem_taichi.quasistatic import relax
+    from dem_taichi.engine.simulation import CellControl
+    from dem_taichi.protocol.probing import linear_probe
+    from dem_taichi.protocol.quasistatic import relax
+    from dem_taichi.scene.config import load_scene
 
     rigid = Simulation(load_scene("smoke"))
     while rigid.measure()["specific_volume"] > 1.75:

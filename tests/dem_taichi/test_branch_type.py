@@ -11,10 +11,10 @@ import pickle
 import numpy as np
 import pytest
 
-from dem_taichi.branches import Branch, branch_labels, branch_names
-from dem_taichi.protocol_config import ProtocolConfig
-from dem_taichi.protocol_records import BranchOutcome, RunLog
-from dem_taichi.resume_codec import EncodingError, decode, encode
+from dem_taichi.protocol.branches import Branch, branch_labels, branch_names
+from dem_taichi.protocol.records import BranchOutcome, RunLog
+from dem_taichi.protocol.resume_codec import EncodingError, decode, encode
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 
 # -- construction -----------------------------------------------------------------------------

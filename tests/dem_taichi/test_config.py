@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.config import (
+from dem_taichi.physics.restitution import discrete_restitution, gamma_for_discrete_restitution
+from dem_taichi.scene.config import (
     SceneError,
     contact_duration,
     gamma_from_restitution,
@@ -14,8 +15,7 @@ from dem_taichi.config import (
     scene_from_toml,
     scene_to_toml,
 )
-from dem_taichi.restitution import discrete_restitution, gamma_for_discrete_restitution
-from dem_taichi.scene import generate_gas, lens_area, rod_geometry
+from dem_taichi.scene.geometry import generate_gas, lens_area, rod_geometry
 
 
 @pytest.mark.parametrize("name", ["smoke", "default", "paper"])
@@ -153,7 +153,7 @@ def test_gas_is_non_overlapping_seeded_and_at_the_area_fraction():
 
 
 def test_scene_overrides_are_validated_like_the_file():
-    from dem_taichi.config import scene_with_overrides
+    from dem_taichi.scene.config import scene_with_overrides
 
     base = load_scene("smoke")
     scene = scene_with_overrides(
@@ -183,7 +183,7 @@ def test_scene_overrides_are_validated_like_the_file():
 def test_tangential_stiffness_limit_is_the_leapfrog_bound_of_two_discs():
     """ω_t = sqrt(3 k_t/k_n) ω_n for two free discs, ω_n Δt = π dt_safety, leapfrog needs
     ω Δt < 2: the limit is where sqrt(3 k_t/k_n) π dt_safety = 2."""
-    from dem_taichi.config import SceneError, load_scene, tangential_stiffness_limit
+    from dem_taichi.scene.config import SceneError, load_scene, tangential_stiffness_limit
 
     for dt_safety in (0.05, 0.15, 0.4):
         ratio = tangential_stiffness_limit(dt_safety)
@@ -205,7 +205,7 @@ def test_tangential_stiffness_limit_is_the_leapfrog_bound_of_two_discs():
     ],
 )
 def test_every_number_of_a_scene_lies_within_the_magnitude_bounds(toml, words):
-    from dem_taichi.config import SceneError
+    from dem_taichi.scene.config import SceneError
 
     with pytest.raises(SceneError) as raised:
         scene_from_toml(toml)

@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.config import scene_from_toml
-from dem_taichi.engine import Simulation
-from dem_taichi.scene import GasState
+from dem_taichi.engine.simulation import Simulation
+from dem_taichi.scene.config import scene_from_toml
+from dem_taichi.scene.geometry import GasState
 
 CONSERVATIVE = """
 [scene]

@@ -1,4 +1,5 @@
-"""Cost estimates before a run (dem_taichi.cost): memory, steps, the refusal and the warning."""
+"""Cost estimates before a run (dem_taichi.protocol.cost): memory, steps, the refusal and the
+warning."""
 
 from __future__ import annotations
 
@@ -6,16 +7,16 @@ import math
 
 import pytest
 
-from dem_taichi.config import load_scene
-from dem_taichi.cost import LONG_RUN_SECONDS, check_cost, estimate_cost
-from dem_taichi.run_schedule import builtin_schedule
-from dem_taichi.scene_options import with_preset
+from dem_taichi.protocol.cost import LONG_RUN_SECONDS, check_cost, estimate_cost
+from dem_taichi.protocol.run_schedule import builtin_schedule
+from dem_taichi.scene.config import load_scene
+from dem_taichi.scene.options import with_preset
 
 
 def test_memory_estimate_brackets_the_engine_allocation():
     """The arrays' bytes summed from the device-array table for the scene are those the engine
     allocates, but for the neighbour capacity (taken at 1.5× its start value)."""
-    from dem_taichi.engine import Simulation
+    from dem_taichi.engine.simulation import Simulation
 
     scene = load_scene("smoke")
     sim = Simulation(scene)

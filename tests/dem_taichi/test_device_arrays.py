@@ -6,8 +6,13 @@ import inspect
 
 import pytest
 
-from dem_taichi.device_arrays import DEVICE_ARRAYS, STATE_ARRAYS, DeviceArray, kernel_parameters
-from dem_taichi.state import STATE_KEYS
+from dem_taichi.engine.device_arrays import (
+    DEVICE_ARRAYS,
+    STATE_ARRAYS,
+    DeviceArray,
+    kernel_parameters,
+)
+from dem_taichi.engine.state import STATE_KEYS
 
 #: Compile-time and scalar kernel parameters the engine passes by name.
 SCALARS = {"ns", "full", "phys", "n_steps", "count_step"}

@@ -5,12 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.config import load_scene, scene_from_toml
-from dem_taichi.engine import AxisControl, BlowUpError, CellControl, Simulation
+from dem_taichi.engine.simulation import AxisControl, BlowUpError, CellControl, Simulation
+from dem_taichi.engine.state import states_equal
 from dem_taichi.io.schema import HISTORY
 from dem_taichi.kernels import layout
-from dem_taichi.scene import GasState
-from dem_taichi.state import states_equal
+from dem_taichi.scene.config import load_scene, scene_from_toml
+from dem_taichi.scene.geometry import GasState
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +41,8 @@ def test_measures_record_declares_every_history_variable_with_its_type(smoke):
     fills each with a value of the declared type."""
     import typing
 
+    from dem_taichi.engine.measures import BondedMeasures, Measures
     from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES
-    from dem_taichi.measures import BondedMeasures, Measures
 
     hints = typing.get_type_hints(BondedMeasures)
     bonded = {var.name for var in BONDED_HISTORY_VARIABLES}
@@ -272,7 +272,7 @@ def test_runtime_parameters_are_the_one_source_for_snapshot_and_time_step(smoke,
     """The snapshot (linear-response probes) and the protocol's Δt read the parameters the
     kernels integrate with, not the scene (issue 9: k_n came from the parameters but μ from the
     scene; Δt from the scene in the protocol)."""
-    from dem_taichi.quasistatic import apply_strain
+    from dem_taichi.protocol.quasistatic import apply_strain
 
     sim = Simulation(smoke)
     sim.set_state(packed_state)

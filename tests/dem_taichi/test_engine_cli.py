@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from dem_taichi.cli import builtin_schedule, main
-from dem_taichi.config import load_scene
+from dem_taichi.cli.commands import builtin_schedule, main
 from dem_taichi.io import latest_checkpoint, load_checkpoint, open_history
+from dem_taichi.scene.config import load_scene
 
 
 def test_run_writes_history_and_resumes_exactly(tmp_path):
@@ -51,8 +51,9 @@ def test_default_scene_runs_to_its_target(tmp_path):
 
 
 def test_sweep_is_a_subcommand(capsys):
-    """``python -m dem_taichi sweep`` hands over to dem_taichi.sweep (its own help and prog)."""
-    from dem_taichi.cli import main
+    """``python -m dem_taichi sweep`` hands over to dem_taichi.sweep.command (its own help and
+    prog)."""
+    from dem_taichi.cli.commands import main
 
     assert main(["sweep", "--help"]) == 0
     assert "python -m dem_taichi sweep" in capsys.readouterr().out

@@ -15,13 +15,13 @@ import sys
 
 import pytest
 
-from dem_taichi.runtime import cuda_available
+from dem_taichi.engine.runtime import cuda_available
 
 SCRIPT = """
 import json, sys
 import numpy as np
-from dem_taichi.config import load_scene
-from dem_taichi.engine import CellControl, Simulation
+from dem_taichi.scene.config import load_scene
+from dem_taichi.engine.simulation import CellControl, Simulation
 arch, precision = sys.argv[1], sys.argv[2]
 sim = Simulation(load_scene("smoke"), arch=arch, precision=precision)
 m = sim.run(1000, control=CellControl.strain_rate(0.1))

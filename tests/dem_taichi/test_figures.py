@@ -3,7 +3,7 @@
 import numpy as np
 import xarray as xr
 
-from dem_taichi.figures import disc_centres, figure_paths, figure_states, stage_labels
+from dem_taichi.analysis.figures import disc_centres, figure_paths, figure_states, stage_labels
 
 
 def test_disc_centres_follow_the_rod_axis():

@@ -1,4 +1,4 @@
-"""The study's findings as functions over arrays (dem_taichi.analysis, issue 21): the one
+"""The study's findings as functions over arrays (dem_taichi.analysis.arrays, issue 21): the one
 implementation that the report of a run in memory and the reader of a run folder both call.
 Exact values on synthetic arrays; no Taichi, no simulation. That the two callers agree on a
 real run is tested on the smoke protocol (tests/dem_taichi/test_protocol.py)."""
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.analysis import (
+from dem_taichi.analysis.arrays import (
     FABRIC_NOISE_MULTIPLE,
     PathArrays,
     ProbeArrays,

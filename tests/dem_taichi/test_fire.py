@@ -11,12 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.config import load_scene
-from dem_taichi.engine import CellControl, Simulation
-from dem_taichi.forcelaw import pair_separation
+from dem_taichi.engine.simulation import CellControl, Simulation
+from dem_taichi.engine.state import states_equal
 from dem_taichi.kernels import layout
-from dem_taichi.sections import SceneError
-from dem_taichi.state import states_equal
+from dem_taichi.physics.forcelaw import pair_separation
+from dem_taichi.scene.base import SceneError
+from dem_taichi.scene.config import load_scene
 
 UFR = 1e-4  # the protocol's relax_unbalanced_force
 KE_PER_ROD = 1e-8  # the smoke scene's relax_kinetic_energy_per_rod
@@ -209,7 +209,7 @@ def test_fire_with_a_parallel_execution_or_a_moving_cell_is_refused(fire_scene):
 
 def test_the_scene_toml_of_a_damped_scene_is_unchanged(smoke, fire_scene):
     """The new keys are written only when set (run directories hash the scene's TOML)."""
-    from dem_taichi.config import scene_from_toml, scene_to_toml
+    from dem_taichi.scene.config import scene_from_toml, scene_to_toml
 
     assert "relaxation" not in scene_to_toml(smoke) and "fire_" not in scene_to_toml(smoke)
     text = scene_to_toml(fire_scene.replace(integration={"fire_f_inc": 1.05}))

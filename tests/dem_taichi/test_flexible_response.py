@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dem_taichi import forcelaw
-from dem_taichi.flexible_response import (
+from dem_taichi.physics import forcelaw
+from dem_taichi.response.flexible import (
     BondStiffness,
     bond_jacobians,
     bond_pre_forces,
@@ -17,7 +17,7 @@ from dem_taichi.flexible_response import (
     flexible_response,
     three_point_compliance,
 )
-from dem_taichi.linear_response import StiffnessVariant, linear_response
+from dem_taichi.response.linear import StiffnessVariant, linear_response
 from tests.dem_taichi.test_linear_response import (
     build_friction_network,
     build_frictionless_network,
@@ -219,7 +219,7 @@ def test_negative_modes_count_the_inertia(frictionless_network):
     relaxed frictionless network is stable, and pre-stressed rods with very soft bonds are not."""
     import scipy.sparse as sparse
 
-    from dem_taichi.linear_response import negative_modes
+    from dem_taichi.response.linear import negative_modes
 
     rng = np.random.default_rng(4)
     q, _ = np.linalg.qr(rng.normal(size=(30, 30)))

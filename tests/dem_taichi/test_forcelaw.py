@@ -5,8 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dem_taichi import forcelaw
-from dem_taichi.linear_response import NetworkSnapshot
+from dem_taichi.physics import forcelaw
+from dem_taichi.response.linear import NetworkSnapshot
 
 K_N = 1.0e3
 F_EDGE, F_INNER = 10.0, 4.0

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from dem_taichi.config import SceneError, load_scene
-from dem_taichi.scene import GasState, generate_gas, rod_geometry, species_parameters
+from dem_taichi.scene.config import SceneError, load_scene
+from dem_taichi.scene.geometry import GasState, generate_gas, rod_geometry, species_parameters
 
 
 def rod_by_rod_gas(scene, max_attempts_per_rod: int = 10_000) -> GasState:

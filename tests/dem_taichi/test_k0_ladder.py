@@ -12,7 +12,7 @@ import math
 
 import pytest
 
-from dem_taichi.paths import k0_step_target
+from dem_taichi.protocol.paths import k0_step_target
 
 
 def test_the_ladder_multiplies_a_solid_sigma_yy():

@@ -5,9 +5,9 @@ criterion accounts for displacements, rotations and the cell deformation)."""
 import numpy as np
 import pytest
 
-from dem_taichi.config import load_scene
-from dem_taichi.engine import CellControl, Simulation
+from dem_taichi.engine.simulation import CellControl, Simulation
 from dem_taichi.kernels import layout
+from dem_taichi.scene.config import load_scene
 
 
 def disc_positions(reduced, angle, lengths, offsets):

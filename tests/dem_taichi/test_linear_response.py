@@ -1,10 +1,10 @@
 """Linear-response stiffness against finite differences of the reference force law.
 
 Small networks are relaxed here with scipy (energy minimisation, then Newton on force balance with
-a finite-difference Jacobian), independently of :mod:`dem_taichi.linear_response`. Finite-strain
+a finite-difference Jacobian), independently of :mod:`dem_taichi.response.linear`. Finite-strain
 "dynamic probes" deform the cell affinely by ±h, re-relax, and difference the engine stress
-(:func:`dem_taichi.forcelaw.stress_from_forces`); tangential springs follow the engine's update
-(spring += relative tangential displacement of the contact points, turning with the normal).
+(:func:`dem_taichi.physics.forcelaw.stress_from_forces`); tangential springs follow the engine's
+update (spring += relative tangential displacement of the contact points, turning with the normal).
 """
 
 import dataclasses
@@ -15,8 +15,8 @@ import pytest
 from scipy import optimize
 from scipy.spatial import cKDTree
 
-from dem_taichi import forcelaw
-from dem_taichi.linear_response import (
+from dem_taichi.physics import forcelaw
+from dem_taichi.response.linear import (
     NetworkSnapshot,
     linear_response,
     network_matrices,

@@ -1,5 +1,5 @@
-"""The findings on the mapped stress window (dem_taichi.mapped_window, issue 19 item 3): every
-function against values computed by hand on constructed histories, the NaN cases, and
+"""The findings on the mapped stress window (dem_taichi.analysis.mapped_window, issue 19 item 3):
+every function against values computed by hand on constructed histories, the NaN cases, and
 run_findings / open_sweep on a synthetic run folder (no Taichi, no simulation)."""
 
 from __future__ import annotations
@@ -12,10 +12,8 @@ import pytest
 import xarray as xr
 from scipy import stats
 
-from dem_taichi.config import load_scene, scene_to_toml, scene_with_overrides
-from dem_taichi.findings import run_findings, stress_scale_interval
-from dem_taichi.io.schema import stage_code
-from dem_taichi.mapped_window import (
+from dem_taichi.analysis.findings import run_findings, stress_scale_interval
+from dem_taichi.analysis.mapped_window import (
     densification_sensitivity,
     local_compressibility,
     moduli_exponent,
@@ -26,7 +24,9 @@ from dem_taichi.mapped_window import (
     stress_scale_from_stiffness,
     windowed_compressibility,
 )
-from dem_taichi.scene import rod_geometry
+from dem_taichi.io.schema import stage_code
+from dem_taichi.scene.config import load_scene, scene_to_toml, scene_with_overrides
+from dem_taichi.scene.geometry import rod_geometry
 
 # --- the stress scale -------------------------------------------------------------------------
 
@@ -363,7 +363,7 @@ def test_run_findings_falls_back_to_the_scene_scale(tmp_path):
 
 def test_sweep_dataset_and_summary_carry_the_new_findings(tmp_path):
     """open_sweep takes the new scalars of each finished member; the table shows them."""
-    from dem_taichi.sweep_results import (
+    from dem_taichi.sweep.results import (
         open_sweep,
         replica_statistics,
         summarise_sweep,

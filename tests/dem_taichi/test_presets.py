@@ -1,4 +1,5 @@
-"""Speed–accuracy presets (dem_taichi.presets): the file rule, the command-line rule, sweeps."""
+"""Speed–accuracy presets (dem_taichi.scene.presets): the file rule, the command-line rule,
+sweeps."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import sys
 
 import pytest
 
-from dem_taichi.config import (
+from dem_taichi.scene.config import (
     SceneError,
     load_scene,
     scene_from_dict,
@@ -15,10 +16,10 @@ from dem_taichi.config import (
     scene_to_toml,
     scene_with_overrides,
 )
-from dem_taichi.presets import PRESETS, preset_keys
-from dem_taichi.protocol_config import probing_settings, protocol_settings
-from dem_taichi.scene_options import scene_from_options, with_preset
-from dem_taichi.sweep_spec import sweep_from_toml
+from dem_taichi.scene.options import scene_from_options, with_preset
+from dem_taichi.scene.presets import PRESETS, preset_keys
+from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+from dem_taichi.sweep.spec import sweep_from_toml
 
 BUILTIN = ("smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded")
 NUMERICAL_KEYS = {

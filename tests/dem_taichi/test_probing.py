@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi.config import load_scene
-from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.config import load_scene
+from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
 PROTOCOL = ProtocolConfig()
 
@@ -36,8 +36,8 @@ ROLLING = {"rolling_stiffness": 2.0e4, "rolling_friction": 0.3}
 )
 def packed(request):
     """A relaxed dense smoke packing and its state."""
-    from dem_taichi.engine import CellControl, Simulation
-    from dem_taichi.protocol import relax
+    from dem_taichi.engine.simulation import CellControl, Simulation
+    from dem_taichi.protocol.runner import relax
 
     name, _, rolling = request.param.partition("+")
     scene = load_scene(name)
@@ -57,9 +57,9 @@ def packed(request):
 
 
 def test_probes_leave_the_path_state_bitwise_untouched(packed):
-    from dem_taichi.engine import CellControl
-    from dem_taichi.probing import probe_state
-    from dem_taichi.state import states_equal
+    from dem_taichi.engine.simulation import CellControl
+    from dem_taichi.engine.state import states_equal
+    from dem_taichi.protocol.probing import probe_state
 
     sim, base = packed
     sim.set_state(base)
@@ -77,7 +77,7 @@ def test_probes_leave_the_path_state_bitwise_untouched(packed):
 
 
 def test_linear_response_and_dynamic_probe_agree_at_small_amplitude(packed):
-    from dem_taichi.probing import dynamic_modulus, linear_probe
+    from dem_taichi.protocol.probing import dynamic_modulus, linear_probe
 
     sim, base = packed
     sim.set_state(base)
@@ -93,7 +93,7 @@ def test_linear_response_and_dynamic_probe_agree_at_small_amplitude(packed):
 
 
 def test_degradation_curve_is_flat_below_the_elastic_limit(packed):
-    from dem_taichi.probing import degradation_curve, linear_probe
+    from dem_taichi.protocol.probing import degradation_curve, linear_probe
 
     sim, base = packed
     sim.set_state(base)
@@ -108,14 +108,14 @@ def test_degradation_curve_is_flat_below_the_elastic_limit(packed):
     if plateau.elastic_limit < curve.amplitudes[-1] or not sim.physics.rolling:
         assert curve.moduli[-1] < (1 - config.plateau_tolerance) * plateau.modulus
     assert plateau.modulus == pytest.approx(linear_probe(sim, "stuck").e_oed_v, rel=0.03)
-    from dem_taichi.state import states_equal
+    from dem_taichi.engine.state import states_equal
 
     assert states_equal(base, sim.get_state())
 
 
 def test_probes_dataset_follows_the_schema(packed, tmp_path):
     from dem_taichi.io import open_probes, write_dataset
-    from dem_taichi.probing import probe_state, probes_dataset
+    from dem_taichi.protocol.probing import probe_state, probes_dataset
 
     sim, base = packed
     sim.set_state(base)
@@ -137,7 +137,7 @@ def test_probes_dataset_follows_the_schema(packed, tmp_path):
 
 
 def test_dynamic_modulus_rejects_bad_input(packed):
-    from dem_taichi.probing import dynamic_modulus
+    from dem_taichi.protocol.probing import dynamic_modulus
 
     sim, base = packed
     with pytest.raises(ValueError, match="axis"):

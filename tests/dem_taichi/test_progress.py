@@ -1,11 +1,11 @@
-"""Stage progress of the protocol (dem_taichi.progress): the time left, lines and bars."""
+"""Stage progress of the protocol (dem_taichi.protocol.progress): the time left, lines and bars."""
 
 from __future__ import annotations
 
 import pytest
 
-from dem_taichi import progress as progress_module
-from dem_taichi.progress import StageProgress, format_seconds
+from dem_taichi.protocol import progress as progress_module
+from dem_taichi.protocol.progress import StageProgress, format_seconds
 
 
 @pytest.mark.parametrize(

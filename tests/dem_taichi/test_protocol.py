@@ -18,10 +18,10 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from dem_taichi.analysis import detect_transition
-from dem_taichi.config import load_scene
+from dem_taichi.analysis.arrays import detect_transition
 from dem_taichi.io import open_configuration, open_history, open_probes
 from dem_taichi.io.schema import PROBE_VARIABLES, stage_code
+from dem_taichi.scene.config import load_scene
 
 TOL = 1e-3
 
@@ -42,7 +42,7 @@ def smoke_protocol_scene(**protocol):
         save_path_states=True,
     )
     settings.update(protocol)
-    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
     extensions = {
         "protocol": ProtocolConfig(**settings),
@@ -55,7 +55,7 @@ def smoke_protocol_scene(**protocol):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     out = tmp_path_factory.mktemp("protocol_smoke")
     return run_protocol(smoke_protocol_scene(), out)
@@ -64,7 +64,7 @@ def run(tmp_path_factory):
 @pytest.fixture(scope="module")
 def secant_run(tmp_path_factory):
     """The same protocol with the secant servo (the paper scene's setting)."""
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     out = tmp_path_factory.mktemp("protocol_smoke_secant")
     return run_protocol(smoke_protocol_scene(servo_stiffness="secant"), out)
@@ -212,9 +212,9 @@ def test_protocol_servo_holds_targets_on_the_engine(run):
     moved here), on the engine from A: both axes to σ = 1.3 p_A, then mixed control (x held,
     σ_yy to 1.6 p_A) — each target within the tolerance at a relaxed state, the held axis
     bitwise unchanged."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.paths import ProtocolRunner
-    from dem_taichi.protocol_config import ProbingConfig, protocol_settings
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.paths import ProtocolRunner
+    from dem_taichi.scene.protocol_sections import ProbingConfig, protocol_settings
 
     sim = Simulation.from_checkpoint(run.files["state_A"])
     config = protocol_settings(sim.scene)
@@ -234,7 +234,7 @@ def test_protocol_servo_holds_targets_on_the_engine(run):
 
 
 def test_restart_from_a_checkpointed_state(run):
-    from dem_taichi.engine import Simulation
+    from dem_taichi.engine.simulation import Simulation
 
     sim = Simulation.from_checkpoint(run.files["state_C"])
     m = sim.measure()
@@ -242,7 +242,7 @@ def test_restart_from_a_checkpointed_state(run):
 
 
 def test_cli_rejects_a_bad_pattern(capsys):
-    from dem_taichi.protocol import main
+    from dem_taichi.protocol.runner import main
 
     assert main(["smoke", "--out", "x", "--pattern", "salty"]) == 2
     assert "salty" in capsys.readouterr().err
@@ -251,7 +251,7 @@ def test_cli_rejects_a_bad_pattern(capsys):
 def test_branches_in_two_processes_equal_the_serial_run(run, tmp_path):
     """workers=2 runs A→B, A→C→B' and the radial path from A's checkpoint in spawned processes;
     the serial engine is deterministic, so every state, history record and probe is the same."""
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     par = run_protocol(smoke_protocol_scene(), tmp_path / "par", workers=2)
     assert par.workers == 2
@@ -285,10 +285,10 @@ def test_branches_in_two_processes_equal_the_serial_run(run, tmp_path):
 
 def test_dynamic_sweep_only_at_the_chosen_states(run):
     """[probing] dynamic_states limits the sweep; the linear response runs at every probe."""
-    from dem_taichi.engine import Simulation
-    from dem_taichi.probing import ProbeRecorder
-    from dem_taichi.protocol import RelaxedState
-    from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.probing import ProbeRecorder
+    from dem_taichi.protocol.runner import RelaxedState
+    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
     probing = ProbingConfig(dynamic_states="C, A_to_C_2", amplitude_min=1e-8, amplitude_max=1e-8)
     assert probing.runs_dynamic("C") and probing.runs_dynamic("A_to_C_2")
@@ -317,7 +317,7 @@ def test_dynamic_sweep_only_at_the_chosen_states(run):
 
 
 def test_cli_rejects_zero_workers(capsys, tmp_path):
-    from dem_taichi.protocol import main, run_protocol
+    from dem_taichi.protocol.runner import main, run_protocol
 
     assert main(["smoke", "--out", "x", "--workers", "0"]) == 2
     assert "--workers: 0 is out of range" in capsys.readouterr().err
@@ -524,12 +524,12 @@ def test_the_reference_comparison_fails_on_a_changed_trajectory_or_reduction():
 def test_report_findings_equal_the_folder_findings(run):
     """The findings of the run's report (computed in memory from the ProtocolResult) equal those
     read back from its folder (summaries, sweeps, benchmarks), key by key where the two share a
-    meaning: both build the same arrays and call the same functions of dem_taichi.analysis
+    meaning: both build the same arrays and call the same functions of dem_taichi.analysis.arrays
     (issue 21)."""
-    from dem_taichi.findings import path_arrays as folder_path_arrays
-    from dem_taichi.findings import probe_arrays as folder_probe_arrays
-    from dem_taichi.findings import run_findings
-    from dem_taichi.report import findings, path_arrays, probe_arrays
+    from dem_taichi.analysis.findings import path_arrays as folder_path_arrays
+    from dem_taichi.analysis.findings import probe_arrays as folder_probe_arrays
+    from dem_taichi.analysis.findings import run_findings
+    from dem_taichi.analysis.report import findings, path_arrays, probe_arrays
 
     summary = json.loads((Path(run.out_dir) / "summary.json").read_text())
     in_memory = path_arrays(run)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from dem_taichi.config import SceneError, load_scene, scene_from_toml, scene_to_toml
-from dem_taichi.protocol_config import (
+from dem_taichi.scene.config import SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.scene.protocol_sections import (
     ProbingConfig,
     ProtocolConfig,
     parse_number_list,

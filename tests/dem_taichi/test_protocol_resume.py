@@ -1,4 +1,4 @@
-"""Resuming an interrupted protocol run (dem_taichi.protocol_resume): bitwise, and refusals."""
+"""Resuming an interrupted protocol run (dem_taichi.protocol.resume): bitwise, and refusals."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from dem_taichi.config import load_scene, scene_to_toml
 from dem_taichi.io.run_directory import RunDirectoryError
+from dem_taichi.scene.config import load_scene, scene_to_toml
 
 from .test_protocol import REFERENCE, _assert_bitwise_equal, _outputs, smoke_protocol_scene
 
@@ -17,8 +17,8 @@ from .test_protocol import REFERENCE, _assert_bitwise_equal, _outputs, smoke_pro
 def interrupted(tmp_path_factory):
     """The smoke protocol of test_protocol stopped by a KeyboardInterrupt at the start of its
     second branch (A→C), as Ctrl-C would: state A and the first branch (A→B) are saved."""
-    import dem_taichi.branches as branches
-    from dem_taichi.protocol import run_protocol
+    import dem_taichi.protocol.branches as branches
+    from dem_taichi.protocol.runner import run_protocol
 
     out = tmp_path_factory.mktemp("interrupted")
     original = branches.run_branch_on
@@ -47,8 +47,8 @@ def _release_runs() -> None:
 
 
 def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
-    from dem_taichi.protocol_records import Branch
-    from dem_taichi.protocol_resume import saved_summary
+    from dem_taichi.protocol.records import Branch
+    from dem_taichi.protocol.resume import saved_summary
 
     assert (interrupted / "resume" / "A.npz").exists()
     assert (interrupted / "resume" / "branch_0.npz").exists()
@@ -62,7 +62,7 @@ def test_interrupted_run_saved_state_a_and_the_finished_branch(interrupted):
 def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
     """The resume runs A→C, C→B and the radial path from the saved A, writes the history files
     again from the saved records: every output equals the reference run's bit for bit."""
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     result = run_protocol(smoke_protocol_scene(), interrupted, resume=True)
     _release_runs()
@@ -72,7 +72,7 @@ def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
 
 
 def test_resume_refuses_another_scene_and_a_directory_without_a_run(tmp_path, interrupted):
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     _release_runs()
     other = smoke_protocol_scene(path_increments=3)
@@ -111,7 +111,7 @@ def test_a_moved_run_folder_resumes_in_worker_processes(interrupted, tmp_path):
     outputs again equal the reference bit for bit."""
     import shutil
 
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     for index in (1, 2):
         (interrupted / "resume" / f"branch_{index}.npz").unlink(missing_ok=True)

@@ -15,8 +15,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from dem_taichi.protocol import ProtocolError, ProtocolRunner
-from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
+from dem_taichi.protocol.runner import ProtocolError, ProtocolRunner
+from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
 DELAY_STEPS = 400  # D = 4 time units at dt = 0.01
 TIME_STEP = 0.01
@@ -161,7 +161,7 @@ def test_secant_servo_loads_a_softening_plant_much_faster():
 def test_secant_estimate_restarts_on_overshoot():
     """A residual that changes sign restarts s at 1 (reversal is elastic); s stays in
     [s_min, 1] and is not estimated from a change below min_change of the target."""
-    from dem_taichi.protocol import SecantStiffness
+    from dem_taichi.protocol.runner import SecantStiffness
 
     est = SecantStiffness(np.eye(1) * 100.0, s_min=0.01, min_change=0.05)
     scale = np.array([10.0])
@@ -205,7 +205,7 @@ def test_servo_converges_where_the_network_is_far_stiffer_than_its_gain():
 def test_without_the_modal_correction_the_servo_bangs_between_its_caps(monkeypatch):
     """The plant is a real test: with the residual passed through unchanged (the servo before
     issue 19's fix) the rates bang between the caps and the targets are never reached."""
-    from dem_taichi.servo import ModalGain
+    from dem_taichi.protocol.servo import ModalGain
 
     monkeypatch.setattr(ModalGain, "scaled", lambda self, residual, tolerance: residual)
     with pytest.raises(ProtocolError, match="not reached"):
@@ -216,7 +216,7 @@ def test_modal_gain_halves_an_overshooting_mode_only():
     """Mean and difference modes: a deviator that flips sign without shrinking halves the
     deviatoric factor; the mean, approaching monotonically, stays at 1; a mode within the
     tolerance never counts as overshooting; one control is its own mode."""
-    from dem_taichi.servo import ModalGain
+    from dem_taichi.protocol.servo import ModalGain
 
     gain = ModalGain(2)
     r = gain.scaled(np.array([1.0, 3.0]), tolerance=1e-3)  # p-mode 2, q-mode 2

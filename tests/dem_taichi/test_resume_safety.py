@@ -1,7 +1,7 @@
 """The protocol's resume files are data, checked against the run, and never run code
 (issue 22); branch worker processes die with the run that started them.
 
-Most tests write small genuine resume files (:mod:`dem_taichi.protocol_resume`) into a run
+Most tests write small genuine resume files (:mod:`dem_taichi.protocol.resume`) into a run
 folder claimed for the smoke protocol scene and then damage, swap or replace them: a resume must
 refuse each bad file with one line naming it and what to do, before any simulation starts.
 The bitwise resume of a real interrupted run and the moved run folder are tested in
@@ -23,11 +23,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dem_taichi.config import scene_to_toml
 from dem_taichi.io.checkpoint import load_checkpoint, save_checkpoint
 from dem_taichi.io.run_directory import start_run
-from dem_taichi.protocol_records import Branch, RelaxedState, RunLog, StageRecord
-from dem_taichi.protocol_resume import (
+from dem_taichi.protocol.records import Branch, RelaxedState, RunLog, StageRecord
+from dem_taichi.protocol.resume import (
     ResumeFileError,
     RunIdentity,
     StageA,
@@ -38,6 +37,7 @@ from dem_taichi.protocol_resume import (
     save_stage_a,
     stage_a_file,
 )
+from dem_taichi.scene.config import scene_to_toml
 
 from .test_protocol import smoke_protocol_scene
 from .test_protocol_resume import _alive, _children, _cmdline
@@ -87,7 +87,7 @@ def _stage_a(folder: Path) -> StageA:
 
 
 def _outcome(branch: Branch, folder: Path):
-    from dem_taichi.branches import BranchOutcome
+    from dem_taichi.protocol.branches import BranchOutcome
 
     log = RunLog(stages={"A_to_B": StageRecord("A_to_B", 2.0, 99)})
     log.checkpoints["B"] = str(folder / "state_B.npz")
@@ -178,7 +178,7 @@ def test_a_pickle_payload_is_never_run(saved, tmp_path, scene_toml, name):
     new ones: the resume refuses it with one line, and the file is never created."""
     import pickle
 
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.runner import run_protocol
 
     sentinel = tmp_path / "pwned"
     (saved.path / "resume" / name).write_bytes(pickle.dumps(PicklePayload(sentinel)))
@@ -316,7 +316,7 @@ def test_a_damaged_state_a_checkpoint_for_the_workers_is_refused(saved, tmp_path
     run's scene before any branch process starts."""
     from types import SimpleNamespace
 
-    from dem_taichi.branches import _checkpoint_for_workers
+    from dem_taichi.protocol.branches import _checkpoint_for_workers
 
     path = saved.path / "state_A.npz"
     path.write_bytes(b"not a checkpoint")
@@ -330,7 +330,7 @@ def test_a_damaged_state_a_checkpoint_for_the_workers_is_refused(saved, tmp_path
 def test_command_line_resume_with_a_damaged_file_is_one_line(tmp_path):
     """``protocol --resume`` of a folder whose ``resume/A.npz`` is garbage: exit code 2, one
     line naming the file, never an internal error; no simulation is started."""
-    from dem_taichi.scene_options import scene_from_options
+    from dem_taichi.scene.options import scene_from_options
 
     run = _claim(tmp_path / "run", scene_to_toml(scene_from_options("smoke", None, [])))
     stage_a_file(run.path).parent.mkdir()
@@ -348,7 +348,7 @@ _ORPHAN = """
 import os, sys, time, subprocess
 code = (
     "import sys, time; sys.path.insert(0, {root!r});"
-    "import dem_taichi.worker_lifetime as w;"
+    "import dem_taichi.protocol.worker_lifetime as w;"
     "{patch};"
     "w.die_with_parent(int(sys.argv[1]), poll_seconds=0.1);"
     "print('ready', flush=True); time.sleep(120)"
@@ -389,8 +389,8 @@ def test_a_worker_ends_when_its_parent_is_killed(only):
 def test_kill_9_of_the_protocol_leaves_no_branch_process(tmp_path):
     """``kill -9`` of ``protocol --workers 2`` once its two branch processes run: every
     descendant is gone within a few seconds and the output pipe is closed (about 12 s; without
-    :func:`dem_taichi.worker_lifetime.die_with_parent` both workers and the resource tracker
-    were left running)."""
+    :func:`dem_taichi.protocol.worker_lifetime.die_with_parent` both workers and the resource
+    tracker were left running)."""
     out = tmp_path / "run"
     args = [sys.executable, "-m", "dem_taichi", "protocol", "smoke", "--out", str(out), "--quiet"]
     args += ["--set", "probing.dynamic=false", "--set", "protocol.path_increments=1"]

@@ -1,4 +1,4 @@
-"""Rolling resistance at inter-rod contacts (:mod:`dem_taichi.rolling`, issue 10).
+"""Rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`, issue 10).
 
 - scene keys validated at load, written only when set (scenes without them keep their TOML);
   the time step follows the rolling period when that is the shortest;
@@ -21,13 +21,13 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi import forcelaw
-from dem_taichi.config import SceneError, load_scene, scene_from_toml, scene_to_toml
-from dem_taichi.engine import Simulation
-from dem_taichi.linear_response import network_matrices
-from dem_taichi.rolling import RollingParameters, rolling_moment, rolling_spring_step
-from dem_taichi.scene import GasState
-from dem_taichi.state import convert_neighbour_list, states_equal
+from dem_taichi.engine.simulation import Simulation
+from dem_taichi.engine.state import convert_neighbour_list, states_equal
+from dem_taichi.physics import forcelaw
+from dem_taichi.physics.rolling import RollingParameters, rolling_moment, rolling_spring_step
+from dem_taichi.response.linear import network_matrices
+from dem_taichi.scene.config import SceneError, load_scene, scene_from_toml, scene_to_toml
+from dem_taichi.scene.geometry import GasState
 
 from .test_linear_response import (
     UNIT_GRADIENTS,
@@ -277,7 +277,7 @@ def used_springs(state):
 
 def compress(sim, min_contacts=40):
     """Compress isotropically (fast) until the packing has ``min_contacts`` contacts."""
-    from dem_taichi.engine import CellControl
+    from dem_taichi.engine.simulation import CellControl
 
     for _ in range(40):
         m = sim.run(200, CellControl.strain_rate(0.5, stage="isotropic_to_A"))

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dem_taichi.config import load_scene, scene_to_toml
 from dem_taichi.io import checkpoint_meta, latest_checkpoint, load_checkpoint, open_history
 from dem_taichi.io.checkpoint import checkpoint_path, save_checkpoint
 from dem_taichi.io.run_directory import (
@@ -24,6 +23,7 @@ from dem_taichi.io.run_directory import (
     scene_sha256,
     start_run,
 )
+from dem_taichi.scene.config import load_scene, scene_to_toml
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = scene_to_toml(load_scene("smoke"))
@@ -131,7 +131,7 @@ def test_a_directory_from_before_run_records_is_adopted_for_its_own_scene(tmp_pa
 
 
 def test_cli_refuses_a_used_directory_and_another_scene(tmp_path, capsys):
-    from dem_taichi.cli import main
+    from dem_taichi.cli.commands import main
 
     out = tmp_path / "run"
     assert main(["run", "smoke", "--out", str(out), "--steps", "600", "--no-progress"]) == 0
@@ -164,7 +164,7 @@ def _slow_smoke(tmp_path: Path) -> Path:
 
 
 def test_interrupt_writes_a_checkpoint_and_resume_continues_bitwise(tmp_path):
-    from dem_taichi.cli import main
+    from dem_taichi.cli.commands import main
 
     scene = _slow_smoke(tmp_path)
     out = tmp_path / "interrupted"
@@ -218,7 +218,7 @@ def test_interrupt_writes_a_checkpoint_and_resume_continues_bitwise(tmp_path):
 def test_cli_resume_falls_back_past_a_damaged_newest_checkpoint(tmp_path, capsys):
     """Issue 22: a damaged newest checkpoint (a flipped byte) does not stop ``run --resume``:
     it continues from the older intact one and says so in one line naming both."""
-    from dem_taichi.cli import main
+    from dem_taichi.cli.commands import main
 
     scene = tmp_path / "smoke.toml"
     scene.write_text(scene_to_toml(load_scene("smoke").replace(output={"checkpoint_every": 200})))
@@ -249,8 +249,8 @@ def test_run_protocol_releases_its_lock_when_it_raises_and_when_it_returns(tmp_p
     gc.collect() (the collector is off here)."""
     import gc
 
-    from dem_taichi.paths import ProtocolRunner
-    from dem_taichi.protocol import run_protocol
+    from dem_taichi.protocol.paths import ProtocolRunner
+    from dem_taichi.protocol.runner import run_protocol
 
     from .test_protocol import smoke_protocol_scene
 

@@ -1,4 +1,4 @@
-"""Sweeps on Dask (`dem_taichi.sweep`): the sweep file, a local-cluster run with a failing
+"""Sweeps on Dask (`dem_taichi.sweep.command`): the sweep file, a local-cluster run with a failing
 member, the re-run, the combined dataset and the replica statistics.
 
 The cluster test runs a reduced smoke protocol (no C→B, no radial path, one increment per path,
@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dem_taichi.findings import mean_interval
-from dem_taichi.sweep import main, read_index, run_sweep
-from dem_taichi.sweep_results import (
+from dem_taichi.analysis.findings import mean_interval
+from dem_taichi.sweep.command import main, read_index, run_sweep
+from dem_taichi.sweep.results import (
     open_relaxed_states,
     open_sweep,
     replica_statistics,
     summarise_sweep,
 )
-from dem_taichi.sweep_spec import SweepError, load_sweep, sweep_from_toml
+from dem_taichi.sweep.spec import SweepError, load_sweep, sweep_from_toml
 
 REDUCED = """
 [sweep.set]
@@ -119,7 +119,7 @@ def test_cli_invalid_sweep_one_line_without_traceback(tmp_path):
 
 
 def test_scene_file_relative_to_the_sweep_file(tmp_path):
-    from dem_taichi.config import builtin_scene_path
+    from dem_taichi.scene.config import builtin_scene_path
 
     (tmp_path / "scenes").mkdir()
     text = builtin_scene_path("smoke").read_text().replace("n_rods = 40", "n_rods = 30")
@@ -136,8 +136,8 @@ def test_scene_file_relative_to_the_sweep_file(tmp_path):
 
 def test_plan_reruns_unfinished_and_failed_members_and_refuses_changed_ones(tmp_path):
     """Without a cluster: what a re-run would do with the members' records."""
-    from dem_taichi.sweep_client import _plan
-    from dem_taichi.sweep_member import member_dir, write_json
+    from dem_taichi.sweep.client import _plan
+    from dem_taichi.sweep.member import member_dir, write_json
 
     spec = sweep_from_toml('[sweep]\nscene = "smoke"\n[sweep.grid]\n"scene.seed" = [1, 2, 3, 4]\n')
     done, running, failed, fresh = spec.members
@@ -284,8 +284,8 @@ def test_shipped_sweep_files_load(path):
 def test_unfinished_member_resumes_from_its_saved_state_a(tmp_path, monkeypatch):
     """A member that failed in its second branch from A (here: made to) is run again from the
     saved state A with its finished first branch, not from the gas; then it is done."""
-    import dem_taichi.branches as branches
-    from dem_taichi.sweep_member import run_member
+    import dem_taichi.protocol.branches as branches
+    from dem_taichi.sweep.member import run_member
 
     spec = sweep_from_toml(
         '[sweep]\nscene = "smoke"\n' + REDUCED + '[sweep.grid]\n"scene.seed" = [1]\n'

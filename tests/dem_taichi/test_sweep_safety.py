@@ -20,10 +20,10 @@ from pathlib import Path
 
 import pytest
 
-from dem_taichi.sweep import main
-from dem_taichi.sweep_client import _local_cluster, _plan
-from dem_taichi.sweep_member import checked_member_dir, run_member, write_json
-from dem_taichi.sweep_spec import (
+from dem_taichi.sweep.client import _local_cluster, _plan
+from dem_taichi.sweep.command import main
+from dem_taichi.sweep.member import checked_member_dir, run_member, write_json
+from dem_taichi.sweep.spec import (
     MAX_MEMBERS,
     Member,
     SweepError,
@@ -168,7 +168,7 @@ def test_a_failed_member_is_cleared_by_its_manifest_under_its_lock(tmp_path, mon
     the files its run.json lists go (with the folder's lock held) and the user's file stays."""
     folder, member = failed_run(tmp_path)
     seen: list = []
-    monkeypatch.setattr("dem_taichi.protocol.run_protocol", fake_protocol(seen))
+    monkeypatch.setattr("dem_taichi.protocol.runner.run_protocol", fake_protocol(seen))
     record = run_member("m1", member.scene_toml, str(folder), sweep_dir=str(tmp_path / "sweep"))
     assert record["status"] == "done", record
     assert (folder / SENTINEL).read_text() == "keep me"
@@ -187,7 +187,7 @@ def test_a_member_folder_locked_by_a_live_process_is_skipped_untouched(
         (folder / "run.lock").write_text(json.dumps(lock))
         before = sorted(p.name for p in folder.rglob("*"))
         seen: list = []
-        monkeypatch.setattr("dem_taichi.protocol.run_protocol", fake_protocol(seen))
+        monkeypatch.setattr("dem_taichi.protocol.runner.run_protocol", fake_protocol(seen))
         record = run_member("m1", member.scene_toml, str(folder), sweep_dir=str(tmp_path / "sweep"))
     finally:
         live.kill()
@@ -415,7 +415,7 @@ def test_scheduler_options_are_checked_before_anything_runs(
 
 
 def test_a_sweep_record_naming_dotdot_is_refused_when_read(tmp_path):
-    from dem_taichi.sweep_results import open_sweep
+    from dem_taichi.sweep.results import open_sweep
 
     (tmp_path / "members").mkdir()
     write_json(tmp_path / "sweep.json", {"sweep": "s", "scene": "smoke", "members": [
@@ -466,8 +466,8 @@ def test_tls_options_connect_only_with_a_certificate_of_the_ca(tmp_path):
     from distributed import Client, LocalCluster
     from distributed.security import Security
 
-    from dem_taichi.sweep import _security
-    from dem_taichi.sweep_client import _cluster
+    from dem_taichi.sweep.client import _cluster
+    from dem_taichi.sweep.command import _security
 
     make_certificates(tmp_path)
     files = {name: str(tmp_path / name) for name in (

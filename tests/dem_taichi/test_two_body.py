@@ -2,8 +2,8 @@
 
 Each test places two bodies (single discs, or 3-disc rods whose only interacting pair is chosen by
 the geometry) and compares the engine's rod forces with the closed-form law, including across the
-periodic boundary. The numpy reference ``dem_taichi.forcelaw`` (written independently) is used for
-the long-range branches.
+periodic boundary. The numpy reference ``dem_taichi.physics.forcelaw`` (written independently) is
+used for the long-range branches.
 """
 
 import math
@@ -11,12 +11,12 @@ import math
 import numpy as np
 import pytest
 
-from dem_taichi import forcelaw
-from dem_taichi.config import gamma_from_restitution, scene_from_toml
-from dem_taichi.engine import Simulation
+from dem_taichi.engine.simulation import Simulation
 from dem_taichi.kernels import layout
-from dem_taichi.restitution import restitution_by_phase
-from dem_taichi.scene import GasState
+from dem_taichi.physics import forcelaw
+from dem_taichi.physics.restitution import restitution_by_phase
+from dem_taichi.scene.config import gamma_from_restitution, scene_from_toml
+from dem_taichi.scene.geometry import GasState
 
 L_CELL = 12.0
 
@@ -289,7 +289,7 @@ def test_intra_rod_pairs_never_interact():
 
 def test_engine_forces_match_the_numpy_reference_on_a_dense_network():
     """Forces and torques of a jammed acidic packing (with friction springs and periodic
-    images) agree with dem_taichi.forcelaw evaluated on the engine's snapshot."""
+    images) agree with dem_taichi.physics.forcelaw evaluated on the engine's snapshot."""
     scene = scene_from_toml(
         """
 [scene]
@@ -308,7 +308,7 @@ steps_per_call = 100
 inertial_number_max = 0.01
 """
     )
-    from dem_taichi.engine import CellControl
+    from dem_taichi.engine.simulation import CellControl
 
     sim = Simulation(scene)
     sim.run(4000, control=CellControl.strain_rate(0.1), output_every=10**9)

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dem_taichi.analysis import fabric_sampling_noise
+from dem_taichi.analysis.arrays import fabric_sampling_noise
 from dem_taichi.io import open_history, open_probes
 from dem_taichi.io.schema import stage_code
 
@@ -65,7 +65,7 @@ def get_run(pattern: str, tmp_root: Path) -> Run:
     base = os.environ.get("DEM_VALIDATION_DIR")
     folder = Path(base) / f"default_{pattern}" if base else tmp_root / f"default_{pattern}"
     if not (folder / "summary.json").exists():
-        from dem_taichi.protocol import run_protocol
+        from dem_taichi.protocol.runner import run_protocol
 
         run_protocol("default", folder, pattern=pattern, overwrite=True)
     _RUNS[pattern] = Run(folder)
@@ -94,8 +94,8 @@ def test_protocol_reaches_every_state_with_targets_held(pattern, root):
 # (basic) and c3a67dc (acidic, neutral), same physics and servo; see
 # benchmarks/results/protocol_validation_summary.md): the checks stay, marked as expected
 # failures with the numbers, so that a change of the model that reproduces the study shows up as
-# XPASS. Interaction fabrics from `python -m dem_taichi.anisotropy` (contact share of the affine
-# stiffness = 1.000 everywhere: k_n = 1e5 against k_a = 20).
+# XPASS. Interaction fabrics from `python -m dem_taichi anisotropy` (contact share of the
+# affine stiffness = 1.000 everywhere: k_n = 1e5 against k_a = 20).
 _ISO_XFAIL = {
     "acidic": "measured: the 300-rod sample leaves the gas with rod fabric -0.093 at A (2.3 "
     "sigma) and isotropic compression raises it to -0.155 at B; E_h/E_v = 1.66 at A, 1.02-1.38 "
@@ -168,7 +168,7 @@ def test_k0_rods_lie_down_and_horizontal_stiffness_grows(pattern, root):
     ],
 )
 def test_compressibility_linear_in_ln_v_ln_p_beyond_A(pattern, root):
-    from dem_taichi.report import compressibility_slope
+    from dem_taichi.analysis.report import compressibility_slope
 
     run = get_run(pattern, root)
     iso = run.path("A_to_B")
@@ -193,7 +193,7 @@ def get_paper_run(tmp_root: Path) -> Run:
     base = os.environ.get("DEM_VALIDATION_DIR")
     folder = Path(base) / "paper_acidic" if base else tmp_root / "paper_acidic"
     if not (folder / "summary.json").exists():
-        from dem_taichi.protocol import run_protocol
+        from dem_taichi.protocol.runner import run_protocol
 
         run_protocol("paper", folder, workers=2, overwrite=True)
     _RUNS["paper"] = Run(folder)
@@ -205,7 +205,7 @@ def test_paper_scene_findings_on_the_isotropic_path_and_k0_fabric(root):
     keeps the fabric isotropic and E_h ≈ E_v (measured with the elastic servo: max |β_yy − β_xx|
     = 0.009, E_h/E_v 0.93–1.06), the rods lie down along K0 (0.000 → −0.173) and ln v – ln p is
     linear beyond A (R² = 0.95)."""
-    from dem_taichi.report import compressibility_slope
+    from dem_taichi.analysis.report import compressibility_slope
 
     run = get_paper_run(root)
     noise = fabric_sampling_noise(run.n_rods)

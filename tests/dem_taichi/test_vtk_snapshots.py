@@ -8,7 +8,6 @@ import pytest
 
 meshio = pytest.importorskip("meshio")
 
-from dem_taichi.config import load_scene  # noqa: E402
 from dem_taichi.io.stages import stage_code  # noqa: E402
 from dem_taichi.io.vtk_snapshots import (  # noqa: E402
     POINT_FIELDS,
@@ -16,10 +15,11 @@ from dem_taichi.io.vtk_snapshots import (  # noqa: E402
     write_pvd,
     write_simulation_snapshot,
 )
+from dem_taichi.scene.config import load_scene  # noqa: E402
 
 
 def _simulation(rod_model: str):
-    from dem_taichi.engine import Simulation
+    from dem_taichi.engine.simulation import Simulation
 
     scene = load_scene("smoke")
     if rod_model != scene.particles.rod_model:
@@ -101,7 +101,7 @@ def test_run_writes_paraview_series_and_snapshot_command_converts_a_state(tmp_pa
     """``run --paraview`` writes a snapshot at every checkpoint and at the end, listed in
     ``run.pvd``; ``snapshot STATE.npz --out F.vtu`` writes the discs of a saved state (on
     request), equal to the run's own snapshot of that step; bad arguments are one line."""
-    from dem_taichi.cli import main
+    from dem_taichi.cli.commands import main
 
     out = tmp_path / "run"
     assert (

@@ -1,0 +1,533 @@
+"""The DEM engine: plain-Python orchestration of the Taichi kernels.
+
+Public API
+----------
+``Simulation(scene, arch="cpu", precision="f64", deterministic=False, execution=None)``
+    ``scene``: a :class:`dem_taichi.scene.config.Scene`, a built-in scene name (``"smoke"``) or a
+    TOML path.
+    Builds the rods (a random gas from the scene, or ``initial=GasState``), allocates the arrays,
+    builds the neighbour list and computes the forces.
+``sim.run(n_steps, control=None, output_every=None, writer=None, progress=False, callback=None)``
+    Advances ``n_steps`` time steps under a :class:`CellControl` (default: the cell held fixed);
+    ``writer`` (e.g. :class:`dem_taichi.io.HistoryWriter`) gets ``sim.measure()`` every
+    ``output_every`` steps and at the end; returns the last measures
+    (:class:`dem_taichi.engine.measures.BondedMeasures`).
+``sim.measure() -> BondedMeasures``
+    The history variables of ``dem_taichi.io.schema`` (stress, p, q, v, fabric, Z, energies...),
+    a typed dict (:class:`dem_taichi.engine.measures.Measures`, with the bonded variables for bonded
+    rods: :class:`dem_taichi.engine.measures.BondedMeasures`).
+``sim.snapshot() -> NetworkSnapshot``
+    The interacting network for the linear-response probes.
+``sim.get_state() / sim.set_state(state)``
+    Numpy copies of the full state (tangential springs and neighbour lists included); restoring
+    a state continues the run bit for bit. Use them to probe copies of a state.
+``sim.save_checkpoint(path)`` / ``Simulation.from_checkpoint(path, arch=None, precision=None)``
+``sim.set_parameters(k_n=..., mu=..., local_damping=..., time_step=...)``
+    Runtime parameters (no recompilation).
+``sim.set_strain_reference()``
+    Resets L0 of the logarithmic strains to the current cell.
+
+Execution
+---------
+``execution="serial"`` runs ``steps_per_call`` fused steps in one kernel call, on one thread
+(launch overhead paid once per call: the fastest at the study's size on a CPU, measured in
+benchmarks/bench_dem.py); it is bitwise deterministic. ``"parallel"`` launches three kernels per
+step, parallel over rods and discs with atomic force scatter (for GPUs / very large N; not
+bitwise reproducible). ``"gather"``: the same three kernels with a full neighbour list and a
+per-rod gather of the pair forces (each pair evaluated twice, no atomics): deterministic in
+parallel, for GPUs. ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` picks the
+serial path on CPU and the gather path on GPU.
+
+Cell control
+------------
+Each axis is strain-controlled: a prescribed logarithmic strain rate ε̇ = −L̇/L (compression
+positive, 0 = fixed), applied exactly (L = L_0 exp(−ε̇ t)). Stresses are held by the
+protocol's servo (:class:`dem_taichi.protocol.servo.StressServo`), which sets these rates from the
+measured response; the engine has no servo of its own.
+
+Relaxations
+-----------
+``CellControl.relaxation(stage)`` holds the cell and marks the call as a minimisation. With
+``[integration] relaxation = "damped"`` (the default) it runs exactly the steps of
+``CellControl.fixed(stage)``; with ``"fire"`` (serial execution only) the call runs the FIRE
+minimiser (:mod:`dem_taichi.kernels.fire`, a kernel compiled only then): a new minimisation from
+the current state at every such call, Δt between the scene's and ``fire_dt_max`` × Δt within
+the call, the scene's Δt after it; ``sim.fire_status()`` reports its last Δt, α and resets.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dem_taichi.engine.control import AxisControl, CellControl
+from dem_taichi.engine.device_arrays import DEVICE_ARRAYS, kernel_parameters
+from dem_taichi.engine.failures import (
+    BlowUpError,
+    CapacityError,
+    blowup_error,
+    runaway_kinetic_energy,
+)
+from dem_taichi.engine.measures import BondedMeasures, Measures
+from dem_taichi.engine.runtime import ensure_runtime
+from dem_taichi.engine.simulation_state import SimulationState
+from dem_taichi.engine.simulation_views import SimulationViews
+from dem_taichi.kernels import layout as L
+from dem_taichi.scene.config import Scene, load_scene
+from dem_taichi.scene.geometry import (
+    GasState,
+    bodies_from_rods,
+    body_geometry,
+    generate_gas,
+    pair_table,
+    rod_geometry,
+    species_parameters,
+)
+
+__all__ = [
+    "AxisControl",
+    "CellControl",
+    "Physics",
+    "Simulation",
+    "BlowUpError",
+    "CapacityError",
+]
+
+
+def step_count(name: str, value: Any, low: int) -> int:
+    """``value`` as a number of steps >= ``low``: an integer (numpy's too), or a float with a
+    whole value such as ``1e4``; a ``ValueError`` naming ``name`` otherwise (NaN, inf, 2.5, a
+    bool or a string would make :meth:`Simulation.run` do nothing, or loop, without a word)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r}: must be an integer >= {low}")
+    if isinstance(value, numbers.Integral):
+        count = int(value)
+    elif math.isfinite(value) and float(value).is_integer():
+        count = int(float(value))
+    else:
+        raise ValueError(f"{name} = {value!r}: must be a whole number of steps >= {low}")
+    if count < low:
+        raise ValueError(f"{name} = {value!r} is out of range: allowed integers >= {low}")
+    return count
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing).
+
+    ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
+    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
+    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`).
+    """
+
+    friction: bool
+    long_range: bool
+    vdw: bool
+    bonded: bool = False
+    chain: int = 1
+    rolling: bool = False
+
+
+class Simulation(SimulationViews, SimulationState):
+    """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
+
+    ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
+    one disc of a bonded rod); ``n_rods`` rods, ``n_bodies`` bodies, ``n_discs`` discs.
+    """
+
+    def __init__(
+        self,
+        scene: Scene | str | Path,
+        arch: str = "cpu",
+        precision: str = "f64",
+        deterministic: bool = False,
+        execution: str | None = None,
+        initial: GasState | None = None,
+        neighbour_capacity: int | None = None,
+    ) -> None:
+        if not isinstance(scene, Scene):  # a built-in scene name or a TOML path
+            scene = load_scene(scene)
+        self.scene = scene
+        self.runtime = ensure_runtime(arch, precision)
+        self.arch, self.precision, self.deterministic = arch, precision, deterministic
+        execution = execution or scene.integration.execution
+        if execution not in ("auto", "serial", "parallel", "gather"):
+            raise ValueError(
+                f"execution = {execution!r}: allowed values are auto|serial|parallel|gather"
+            )
+        if deterministic and execution not in ("serial", "gather"):
+            execution = "serial" if arch == "cpu" else "gather"
+        elif execution == "auto":
+            execution = "serial" if arch == "cpu" else "parallel"
+        self.execution = execution
+        self.full_list = execution == "gather"
+        if scene.integration.relaxation_method == "fire" and execution != "serial":
+            raise ValueError(
+                f'[integration] relaxation = "fire" needs the serial execution; execution = '
+                f"{execution!r} (arch {arch!r}, deterministic={deterministic}) has no FIRE kernel"
+            )
+        self.geometry = rod_geometry(scene)
+        self.body = body_geometry(scene)
+        self.bonded = scene.bonded
+        charge, _, _ = species_parameters(scene)
+        self.charge = charge
+        lr_on = scene.long_range.enabled and bool(np.any(charge != 0))
+        vdw_on = scene.van_der_waals.enabled and bool(np.any(charge != 0))
+        friction_on = scene.contact.friction and scene.contact.k_t > 0
+        self.physics = Physics(
+            friction=friction_on, long_range=lr_on, vdw=vdw_on, bonded=self.bonded,
+            chain=self.geometry.n_spheres, rolling=scene.rolling_parameters.enabled,
+        )  # fmt: skip
+        self.n_rods = scene.particles.n_rods
+        self.n_discs = self.n_rods * self.geometry.n_spheres
+        self.n_bodies = self.n_discs if self.bonded else self.n_rods
+        self._real = self.runtime.numpy_real
+        self._stage = "gas"
+        self._rates = np.zeros(2)
+        self._control = CellControl.fixed()
+        self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
+        self.n_rebuild_calls = 0
+        gas = initial if initial is not None else generate_gas(scene)
+        if self.bonded and len(gas.angle) == self.n_rods:
+            gas = bodies_from_rods(gas, self.geometry)
+        if len(gas.angle) != self.n_bodies:
+            raise ValueError(
+                f"initial state of {len(gas.angle)} bodies does not fit this scene "
+                f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
+            )
+        self.cutoff = self._cutoff()
+        self.list_radius = self.cutoff + scene.integration.skin
+        capacity = neighbour_capacity or self._initial_capacity()
+        self._allocate(capacity, gas.cell_lengths)
+        self._upload_gas(gas)
+        self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
+        self.step = 0
+        self._prime()
+
+    # ------------------------------------------------------------------------------------------
+    # set-up
+    def _cutoff(self) -> float:
+        d = self.geometry.diameter
+        reach = 0.0
+        if self.physics.long_range:
+            table = pair_table(self.scene)
+            reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
+        if self.physics.vdw:
+            reach = max(reach, self.scene.van_der_waals.f_max / self.scene.van_der_waals.k)
+        return d + reach
+
+    def _initial_capacity(self) -> int:
+        # half list: about half the discs within r_list of a disc at the densest packing
+        r = self.list_radius / self.geometry.diameter
+        return (2 if self.full_list else 1) * (int(2.2 * r * r) + 6)
+
+    def _allocate(self, capacity: int, cell_lengths: np.ndarray) -> None:
+        import taichi as ti
+
+        real = self.runtime.real
+        n, m, ns = self.n_bodies, self.n_discs, self.body.n_spheres
+        nd = ti.ndarray
+        self.capacity = int(capacity)
+        cells_axis = int(max(cell_lengths) / self.list_radius) + 2
+        self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
+        self._sizes["rolling_discs"] = m if self.physics.rolling else 1
+        self._sizes["species"] = self.geometry.n_spheres
+        self._sizes["cells"] = cells_axis
+        self._dtypes = {"real": real, "i32": ti.i32}
+        self.a: dict[str, Any] = {
+            spec.name: nd(self._dtypes[spec.dtype], spec.shape_for(self._sizes))
+            for spec in DEVICE_ARRAYS
+        }
+        self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))
+        self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
+        self.a["charge"].from_numpy(self.charge.astype(np.int32))
+        self.a["pair_table"].from_numpy(pair_table(self.scene).astype(self._real))
+        for name in ("nbr_count", "old_count"):
+            self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
+        self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
+        for name in ("nbr_xi", "nbr_psi"):
+            shape = self.a[name].shape
+            self.a[name].from_numpy(np.zeros(shape, dtype=self._real))
+        self.a["params"].from_numpy(self._default_params())
+
+    def _default_params(self) -> np.ndarray:
+        s, geo = self.scene, self.body
+        p = np.zeros(L.N_PARAMS)
+        p[L.P_DT] = s.time_step
+        p[L.P_KN] = s.contact.k_n
+        p[L.P_GN] = s.gamma_n
+        p[L.P_KT] = s.contact.k_t if self.physics.friction else 0.0
+        p[L.P_GT] = s.contact.gamma_t
+        p[L.P_MU] = s.contact.mu
+        p[L.P_ALPHA] = s.integration.local_damping
+        p[L.P_MASS] = geo.mass
+        p[L.P_INERTIA] = geo.inertia
+        p[L.P_DIAM] = geo.diameter
+        p[L.P_RLIST] = self.list_radius
+        p[L.P_SKIN] = s.integration.skin
+        p[L.P_VDW_F] = s.van_der_waals.f_max
+        p[L.P_VDW_K] = s.van_der_waals.k
+        p[L.P_MAX_OFFSET] = geo.max_offset
+        p[L.P_MAX_OVERLAP] = s.integration.max_overlap * geo.diameter
+        p[L.P_REACH] = geo.length + self.list_radius
+        p[L.P_CUT] = self.cutoff
+        p[L.P_SPACING] = s.particles.spacing
+        if self.bonded:
+            b = s.bond_parameters
+            p[[L.P_BOND_KN, L.P_BOND_KT, L.P_BOND_KB]] = b.k_n, b.k_t, b.k_b
+            p[[L.P_BOND_GN, L.P_BOND_GT, L.P_BOND_GB]] = b.gamma_n, b.gamma_t, b.gamma_b
+            p[L.P_BOND_BREAK] = b.breakage_force
+        roll = s.rolling_parameters
+        p[[L.P_ROLL_K, L.P_ROLL_G, L.P_ROLL_CAP]] = roll.stiffness, roll.damping, roll.cap
+        return p.astype(self._real)
+
+    def _upload_gas(self, gas: GasState) -> None:
+        cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
+        self._check_cell(cell_lengths)
+        reduced = np.asarray(gas.position, dtype=float) / cell_lengths
+        self.a["pos"].from_numpy(reduced.astype(self._real))
+        self.a["angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
+        self.a["vel"].from_numpy(np.asarray(gas.velocity, dtype=self._real))
+        self.a["omega"].from_numpy(np.asarray(gas.angular_velocity, dtype=self._real))
+        self.a["ref_pos"].from_numpy(reduced.astype(self._real))
+        self.a["ref_angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
+        cell = np.zeros(L.N_CELL)
+        cell[[L.C_LX, L.C_LY]] = cell_lengths
+        cell[[L.C_LBX, L.C_LBY]] = cell_lengths
+        self.a["cell"].from_numpy(cell.astype(self._real))
+        flags = np.zeros(L.N_FLAGS, dtype=np.int32)
+        flags[L.F_FORCE_REBUILD] = 1
+        self.a["flags"].from_numpy(flags)
+
+    def _check_cell(self, cell_lengths: np.ndarray) -> None:
+        reach = self.geometry.length + self.list_radius
+        if np.min(cell_lengths) < 2.0 * self.list_radius + self.geometry.length:
+            raise CapacityError(
+                f"cell lengths {np.round(cell_lengths, 4).tolist()} are too small for the minimum "
+                f"image with rods of length {self.geometry.length} and list radius "
+                f"{self.list_radius:.3g} (need > {2 * self.list_radius + self.geometry.length:.3g}"
+                f"; reach {reach:.3g}): use more rods ([particles] n_rods) or a smaller "
+                "[integration] skin"
+            )
+
+    def _launch(self, kernel, **scalars) -> None:
+        """Call ``kernel`` with its compile-time and scalar arguments (``scalars``, by name) and
+        every device array its other parameters name (:data:`DEVICE_ARRAYS`)."""
+        a = self.a
+        kernel(*[scalars[n] if n in scalars else a[n] for n in kernel_parameters(kernel)])
+
+    def recompute_forces(self) -> None:
+        """Recompute forces/torques from the current positions, velocities and springs (ξ kept)."""
+        self._prime()
+
+    def _prime(self) -> None:
+        from dem_taichi.kernels.step import prime_forces
+
+        for _ in range(8):
+            self._launch(
+                prime_forces, ns=self.body.n_spheres, full=self.full_list, phys=self.physics
+            )
+            if not self._handle_flags(0):
+                return
+        raise CapacityError("could not build the neighbour list")  # pragma: no cover
+
+    # ------------------------------------------------------------------------------------------
+    # flags, capacity growth, blow-up
+    def _handle_flags(self, step_offset: int) -> bool:
+        """Check kernel flags; grow capacity on overflow (True: repeat), raise on blow-up."""
+        flags = self.a["flags"].to_numpy()
+        if flags[L.F_BLOWUP]:
+            self._raise_blowup(flags, step_offset)
+        if flags[L.F_OVERFLOW]:
+            needed = int(flags[L.F_NEEDED])
+            self._grow(int(needed * 1.25) + 2)
+            flags = self.a["flags"].to_numpy()
+            flags[L.F_OVERFLOW] = 0
+            flags[L.F_STOP] = 0
+            self.a["flags"].from_numpy(flags)
+            return True
+        return False
+
+    def _grow(self, capacity: int) -> None:
+        import taichi as ti
+
+        limit = 4096
+        if capacity > limit:
+            raise CapacityError(
+                f"a disc has {capacity} list neighbours (limit {limit}): the packing or the "
+                "list radius is unphysical; reduce [integration] skin or the long-range range "
+                "(f_max / k_a)"
+            )
+        sizes = dict(self._sizes, capacity=capacity)
+        for spec in DEVICE_ARRAYS:
+            if not spec.grows:
+                continue
+            shape = spec.shape_for(sizes)
+            grown = ti.ndarray(self._dtypes[spec.dtype], shape)
+            if spec.copy_on_growth:
+                old = self.a[spec.name].to_numpy()
+                new = np.zeros(shape, dtype=old.dtype)
+                keep = min(capacity, old.shape[1])
+                new[:, :keep] = old[:, :keep]
+                grown.from_numpy(new)
+            self.a[spec.name] = grown
+        self._sizes = sizes
+        self.capacity = capacity
+
+    def _raise_blowup(self, flags: np.ndarray, step_offset: int) -> None:
+        step = self.step + step_offset + int(flags[L.F_STEPS])
+        code, index = int(flags[L.F_BLOWUP]), int(flags[L.F_BLOWUP_INDEX])
+        raise blowup_error(code, index, step, self.scene.integration)
+
+    def _check_kinetic_energy(self) -> None:
+        v = self.a["vel"].to_numpy().astype(float)
+        w = self.a["omega"].to_numpy().astype(float)
+        ke = 0.5 * self.body.mass * np.sum(v * v) + 0.5 * self.body.inertia * np.sum(w * w)
+        limit = self.scene.integration.max_kinetic_energy_per_rod * self.n_rods
+        if not math.isfinite(ke) or ke > limit:
+            raise runaway_kinetic_energy(ke, limit, self.step, self.scene.integration)
+
+    # ------------------------------------------------------------------------------------------
+    # stepping
+    def _set_rates(self, rates: np.ndarray) -> None:
+        self._rates = np.asarray(rates, dtype=float)
+        params = self.a["params"].to_numpy()
+        params[L.P_RATE_X], params[L.P_RATE_Y] = self._rates
+        self.a["params"].from_numpy(params)
+
+    def _start_fire(self) -> None:
+        """Set the FIRE array for a new minimisation (:mod:`dem_taichi.kernels.fire`): the
+        scene's FIRE parameters, Δt_max and Δt_min as multiples of the current Δt, α = α_start,
+        the counters 0."""
+        p = self.scene.integration.fire
+        dt = self.time_step
+        fire = np.zeros(L.N_FIRE)
+        fire[L.FIRE_DT_MAX] = p["dt_max"] * dt
+        fire[L.FIRE_DT_MIN] = p["dt_min"] * dt
+        fire[L.FIRE_N_DELAY] = p["n_delay"]
+        fire[L.FIRE_F_INC] = p["f_inc"]
+        fire[L.FIRE_F_DEC] = p["f_dec"]
+        fire[L.FIRE_ALPHA_START] = p["alpha_start"]
+        fire[L.FIRE_F_ALPHA] = p["f_alpha"]
+        fire[L.FIRE_ALPHA] = p["alpha_start"]
+        fire[L.FIRE_DT] = dt
+        fire[L.FIRE_DT0] = dt
+        self.a["fire"].from_numpy(fire.astype(self._real))
+
+    def fire_status(self) -> dict[str, float]:
+        """The FIRE minimiser's scalars after the last minimising call ("fire" scenes): the
+        running Δt it reached, α, the steps, the velocity resets (P ≤ 0) and N+ / N−."""
+        f = self.a["fire"].to_numpy().astype(float)
+        return {
+            "dt": f[L.FIRE_DT], "alpha": f[L.FIRE_ALPHA], "steps": f[L.FIRE_STEPS],
+            "resets": f[L.FIRE_RESETS], "n_positive": f[L.FIRE_N_POS],
+            "n_negative": f[L.FIRE_N_NEG],
+        }  # fmt: skip
+
+    def _advance(self, n_steps: int, fire: bool = False) -> None:
+        """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up);
+        ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
+        from dem_taichi.kernels import parallel as K
+        from dem_taichi.kernels.step import run_steps_serial
+
+        done = 0
+        while done < n_steps:
+            flags = self.a["flags"].to_numpy()
+            flags[L.F_STEPS] = 0
+            self.a["flags"].from_numpy(flags)
+            todo = n_steps - done
+            t0 = _time.perf_counter()
+            ns = self.body.n_spheres
+            if fire:
+                from dem_taichi.kernels.fire import run_steps_fire
+
+                self._launch(run_steps_fire, ns=ns, phys=self.physics, n_steps=todo)
+            elif self.execution == "serial":
+                self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
+            else:
+                for _ in range(todo):
+                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list, phys=self.physics)
+                    self._launch(K.kick_drift_parallel, ns=ns)
+                    if self.full_list:
+                        self._launch(K.forces_gather, ns=ns, phys=self.physics)
+                    else:
+                        self._launch(K.forces_parallel, ns=ns, phys=self.physics, count_step=1)
+            steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
+            self.timings["kernel"] += _time.perf_counter() - t0
+            grown = self._handle_flags(done)
+            done += steps_done
+            self.step += steps_done
+            if grown:
+                self.n_rebuild_calls += 1
+            elif steps_done < todo:  # pragma: no cover - a stop without a recognised flag
+                raise RuntimeError(f"kernel stopped after {steps_done} of {todo} steps")
+        self._check_kinetic_energy()
+
+    def run(
+        self,
+        n_steps: int,
+        control: CellControl | None = None,
+        output_every: int | None = None,
+        writer: Any = None,
+        progress: bool = False,
+        callback: Callable[[Simulation, Measures], None] | None = None,
+    ) -> BondedMeasures:
+        """Advance ``n_steps`` steps; returns the measures at the end (see module docstring).
+
+        ``writer.append(measures)`` and ``callback(sim, measures)`` are called every
+        ``output_every`` steps (default ``[output] every``) and at the end.
+
+        A minimising control (``control.minimise``, :meth:`CellControl.relaxation`) on a scene
+        with ``[integration] relaxation = "fire"`` runs the FIRE minimiser
+        (:mod:`dem_taichi.kernels.fire`) for the call: a new minimisation from the current
+        state, Δt growing to at most ``fire_dt_max`` × Δt within the call and back to Δt after
+        it. Otherwise (every other control, and every call of a "damped" scene) the damped
+        dynamics, the same steps whatever ``minimise`` says.
+        """
+        n_steps = step_count("n_steps", n_steps, 0)
+        output_every = (
+            self.scene.output.every
+            if output_every is None
+            else step_count("output_every", output_every, 1)
+        )
+        control = control or self._control
+        self._control = control
+        self._stage = control.stage
+        fire = control.minimise and self.scene.integration.relaxation_method == "fire"
+        if fire:
+            self._start_fire()
+        chunk = self.scene.integration.steps_per_call
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=n_steps, unit="step", desc=control.stage, smoothing=0.1)
+        measures: BondedMeasures | None = None
+        done = 0
+        next_output = output_every
+        try:
+            while done < n_steps:
+                todo = min(chunk, n_steps - done, next_output - done)
+                self._set_rates(control.rates)
+                self._advance(todo, fire)
+                done += todo
+                if bar is not None:
+                    bar.update(todo)
+                if done == next_output or done == n_steps:
+                    next_output = done + output_every
+                    measures = self.measure()
+                    if writer is not None:
+                        writer.append(measures)
+                    if callback is not None:
+                        callback(self, measures)
+        finally:
+            if bar is not None:
+                bar.close()
+        return measures if measures is not None else self.measure()

@@ -1,0 +1,213 @@
+"""What a :class:`dem_taichi.engine.simulation.Simulation` reports: the history measures, the rods
+of either model, the interaction network (a base class of ``Simulation``; numpy and the measure
+kernel, no state of its own).
+
+``measure()`` is the history record (:class:`dem_taichi.engine.measures.Measures`; bonded rods add
+:data:`dem_taichi.io.history_schema.BONDED_HISTORY_VARIABLES`); ``rod_positions()`` and
+``rod_angles()`` are the rods' (bonded rods: mean of the discs and end-to-end vector), the
+``body_*`` views the engine's bodies; ``snapshot()`` the :class:`NetworkSnapshot` the probes and
+the servo use.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dem_taichi.engine.measures import BondedMeasures, history_record
+from dem_taichi.engine.network import interacting_entries, mechanical_coordination, network_snapshot
+from dem_taichi.kernels import layout as L
+from dem_taichi.physics.bonds import rod_axes, unwrapped_chains
+from dem_taichi.physics.snapshot import NetworkSnapshot
+from dem_taichi.scene.config import Scene
+from dem_taichi.scene.geometry import RodGeometry, species_parameters
+
+__all__ = ["SimulationViews"]
+
+
+class SimulationViews:
+    """Measures, rods and network of a simulation (mixed into :class:`Simulation`)."""
+
+    # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
+    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
+    # not named here: engine imports this module.
+    scene: Scene
+    a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
+    geometry: RodGeometry
+    body: RodGeometry
+    physics: Any
+    bonded: bool
+    full_list: bool
+    n_rods: int
+    n_bodies: int
+    capacity: int
+    step: int
+    reference_lengths: np.ndarray
+    timings: dict[str, float]
+    _rates: np.ndarray
+    _stage: str
+    if TYPE_CHECKING:
+
+        def _launch(self, kernel: Callable[..., Any], **scalars: Any) -> None: ...
+
+    def _measure_sums(self) -> np.ndarray:
+        from dem_taichi.kernels.measures import measure_sums
+
+        t0 = _time.perf_counter()
+        self._launch(measure_sums, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
+        sums = self.a["measures"].to_numpy().astype(float)
+        self.timings["measure"] += _time.perf_counter() - t0
+        return sums
+
+    @property
+    def cell_lengths(self) -> np.ndarray:
+        c = self.a["cell"].to_numpy().astype(float)
+        return c[[L.C_LX, L.C_LY]]
+
+    @property
+    def time(self) -> float:
+        return float(self.a["cell"].to_numpy()[L.C_TIME])
+
+    def _stress_tensor(self, sums: np.ndarray | None = None) -> np.ndarray:
+        sums = self._measure_sums() if sums is None else sums
+        area = float(np.prod(self.cell_lengths))
+        return np.array([[sums[L.M_SXX], sums[L.M_SXY]], [sums[L.M_SYX], sums[L.M_SYY]]]) / area
+
+    def body_positions(self) -> np.ndarray:
+        """Body centroids (n_bodies, 2) wrapped into the cell [0, L) (rods, or the discs of
+        bonded rods)."""
+        s = self.a["pos"].to_numpy().astype(float)
+        return (s - np.floor(s)) * self.cell_lengths
+
+    def body_angles(self) -> np.ndarray:
+        return self.a["angle"].to_numpy().astype(float)
+
+    def rod_positions(self) -> np.ndarray:
+        """Rod centroids (N, 2) wrapped into the cell [0, L) (bonded rods: mean of the discs)."""
+        if not self.bonded:
+            return self.body_positions()
+        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[0]
+
+    def rod_angles(self) -> np.ndarray:
+        """Rod angles θ (N,) (bonded rods: of the end-to-end vector, in (−π, π])."""
+        if not self.bonded:
+            return self.body_angles()
+        return rod_axes(self.body_positions(), self.geometry.n_spheres, self.cell_lengths)[1]
+
+    def disc_positions(self) -> np.ndarray:
+        """Disc centres (M, 2), rod-major (global disc index r n_s + s); not wrapped."""
+        return self.a["disc_x"].to_numpy().astype(float)
+
+    @property
+    def n_broken_bonds(self) -> int:
+        """Bonds broken so far (0 for rigid rods)."""
+        if not self.bonded:
+            return 0
+        intact = self.a["bond_intact"].to_numpy()
+        has_bond = np.arange(self.n_bodies) % self.geometry.n_spheres != self.geometry.n_spheres - 1
+        return int(np.count_nonzero(has_bond & (intact == 0)))
+
+    @property
+    def history_variables(self):
+        """The history file's variables for this simulation (bonded rods add theirs)."""
+        from dem_taichi.io.history_schema import BONDED_HISTORY_VARIABLES, HISTORY_VARIABLES
+
+        return HISTORY_VARIABLES + (BONDED_HISTORY_VARIABLES if self.bonded else ())
+
+    def measure(self) -> BondedMeasures:
+        """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
+        from dem_taichi.io.schema import stage_code
+
+        sums = self._measure_sums()
+        n_bonds = self.n_rods * (self.geometry.n_spheres - 1) if self.bonded else 0
+        record = history_record(
+            sums,
+            self._stress_tensor(sums),
+            self.cell_lengths,
+            self.reference_lengths,
+            self._rates,
+            self.rod_angles(),
+            self.geometry,
+            self.n_rods,
+            self.step,
+            self.time,
+            stage_code(self._stage),
+            self._mechanical_coordination(),
+            n_bodies=self.n_bodies,
+            n_bonds=n_bonds - int(round(sums[L.M_BROKEN])),
+        )
+        if self.bonded:
+            record["bond_energy"] = float(sums[L.M_U_BOND])
+            record["n_broken_bonds"] = int(round(sums[L.M_BROKEN]))
+        return record
+
+    def stress(self) -> np.ndarray:
+        """Stress tensor (2, 2), compression positive, from the current forces."""
+        return self._stress_tensor()
+
+    def total_energy(self) -> float:
+        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
+        m = self.measure()
+        bonds = m.get("bond_energy", 0.0)
+        return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"] + bonds
+
+    # network (dem_taichi.engine.network)
+    def _contact_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
+        a = self.a
+        counts, bits = a["nbr_count"].to_numpy(), a["pair_flags"].to_numpy()
+        return interacting_entries(counts, bits, a["nbr"].to_numpy(), self.capacity)
+
+    def _mechanical_coordination(self) -> float:
+        i, _, packed, bits = self._contact_pairs()
+        return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
+
+    def _snapshot_positions(self) -> np.ndarray:
+        """Body centroids for the snapshot: wrapped, except that the discs of a bonded rod are
+        made contiguous (each bond vector x_h − x_g, no shift)."""
+        positions = self.body_positions()
+        if not self.bonded:
+            return positions
+        chain = self.geometry.n_spheres
+        return unwrapped_chains(positions, chain, self.cell_lengths).reshape(-1, 2)
+
+    def _bond_network(self):
+        """The bonds of a bonded simulation as a
+        :class:`dem_taichi.physics.snapshot.BondNetwork`."""
+        from dem_taichi.physics.bonds import chain_bonds
+        from dem_taichi.physics.snapshot import BondNetwork
+
+        g = chain_bonds(self.n_rods, self.geometry.n_spheres)
+        params = self.a["params"].to_numpy().astype(float)
+        return BondNetwork(
+            chain=self.geometry.n_spheres,
+            g=g,
+            intact=self.a["bond_intact"].to_numpy()[g] == 1,
+            rest_length=float(params[L.P_SPACING]),
+            k_n=float(params[L.P_BOND_KN]),
+            k_t=float(params[L.P_BOND_KT]),
+            k_b=float(params[L.P_BOND_KB]),
+        )
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The interacting network as a :class:`dem_taichi.physics.snapshot.NetworkSnapshot`."""
+        self._measure_sums()
+        return network_snapshot(
+            self._contact_pairs(),
+            self.a["disc_x"].to_numpy().astype(float),
+            self.a["nbr_xi"].to_numpy().astype(float),
+            self.cell_lengths,
+            self._snapshot_positions(),
+            self.body_angles(),
+            self.body,
+            species_parameters(self.scene),
+            self.a["params"].to_numpy().astype(float),
+            self.physics.vdw,
+            bonds=self._bond_network() if self.bonded else None,
+            rolling_springs=(
+                self.a["nbr_psi"].to_numpy().astype(float) if self.physics.rolling else None
+            ),
+        )

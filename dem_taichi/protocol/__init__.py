@@ -1,0 +1,9 @@
+"""The virtual experiments: quasi-static blocks, the servo, the loading paths and branches from
+A, probing, records, resume, progress and cost, and the runner
+(:func:`~dem_taichi.protocol.runner.run_protocol`; ``python -m dem_taichi protocol``).
+"""
+
+from dem_taichi._moved import forward_attributes
+
+#: the names of the former module ``dem_taichi.protocol`` (now :mod:`dem_taichi.protocol.runner`)
+__getattr__ = forward_attributes(__name__)

@@ -1,0 +1,579 @@
+"""The loading paths of the study on the DEM engine (docs/science/dem-model.md §1.6):
+:class:`ProtocolRunner`.
+
+Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
+
+0. ``aggregation`` (optional, ``[protocol] aggregation`` = "time" | "coordination") — the gas is
+   brought to ``aggregation_area_fraction`` by an isotropic strain-controlled compression at
+   ``gas_strain_rate``, then aged at fixed cell (its rms speed optionally rescaled to
+   ``aggregation_speed`` at every check) for ``aggregation_time``, or until the coordination
+   number Z reaches ``aggregation_coordination`` (at most ``aggregation_max_time``).
+1. ``isotropic_to_A`` — from the gas, isotropic strain-controlled compression in increments of
+   per-axis logarithmic strain h, each followed by a relaxation at fixed cell. A relaxed state is
+   a candidate for the fluid–solid transition when p > ``pressure_tolerance`` and
+   Z_m ≥ ``coordination_min``. On a candidate found with h > ``min_compression_increment`` the
+   sample is restored to the previous relaxed state and h is halved (bisection of the
+   transition); at the smallest h a candidate becomes **A** when p stays above the tolerance over
+   the next ``confirm_increments`` relaxed increments (then the sample is restored to the
+   candidate). The rule is :func:`dem_taichi.analysis.arrays.detect_transition`, which is re-applied
+   to the whole relaxed sequence and recorded (with p, Z_m and the Z_m jump) in the results.
+2. ``A_to_B`` — isotropic stress path, σ_xx = σ_yy = p_k, p_k log-spaced from p_A to
+   ``target_mean_stress`` (state **B**).
+3. ``A_to_C`` — K0 (oedometric) path from A: L_x never changes (ε_xx = ε_xx(A) exactly),
+   σ_yy servoed up log-spaced targets, the last target being p = ``target_mean_stress``
+   (state **C**).
+4. ``C_to_B`` — from C, both axes servoed: p = p_C constant, q decreasing linearly to 0
+   (state **B'**).
+5. ``radial`` — from A (the stored state), p increasing log-spaced to ``target_mean_stress`` at
+   constant η = q/p: σ_yy = p (1 + η/2), σ_xx = p (1 − η/2) (states **R<k>_end**).
+
+The stress targets are held by :class:`dem_taichi.protocol.servo.StressServo`; probes run through
+``probe_hook``; the whole run with its outputs is :func:`dem_taichi.protocol.runner.run_protocol`.
+
+Symbols: σ stress (force/length, compression positive), p = (σ_xx+σ_yy)/2, q = σ_yy − σ_xx,
+η = q/p, ε logarithmic strain (compression positive), v specific volume, Z_m mechanical
+coordination number, UFR unbalanced-force ratio, I inertial number.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from dem_taichi.analysis.arrays import Transition, detect_transition
+from dem_taichi.engine.measures import Measures
+from dem_taichi.io.vtk_snapshots import simulation_snapshot
+from dem_taichi.protocol.aggregation import aggregate
+from dem_taichi.protocol.progress import StageProgress, use_bars
+from dem_taichi.protocol.quasistatic import apply_strain, relax, strain_rate_cap
+from dem_taichi.protocol.records import ProtocolError, RelaxedState, RunLog, StageRecord
+from dem_taichi.protocol.servo import StressServo
+from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+
+if TYPE_CHECKING:
+    from dem_taichi.engine.simulation import Simulation
+
+__all__ = ["ProbeHook", "ProtocolRunner"]
+
+
+def k0_step_target(
+    stress_xx: float, stress_yy: float, mean_stress: float, ratio: float, floor: float
+) -> tuple[float, float]:
+    """The next σ_yy target of the K0 ladder and the current K0 = σ_xx/σ_yy (force/length, 1).
+
+    The ladder multiplies the current σ_yy by ``ratio`` (> 1). On a loose, aggregated sample the
+    stress at A can be far from isotropic, with σ_yy near zero or negative while p > 0 (the
+    network carries σ_xx only): a ladder from such a σ_yy targets a stress the sample cannot
+    hold (a tensile or vanishing σ_yy, refused by the servo's relative tolerance after 2,000,000
+    steps), and K0 from it is meaningless. Below ``floor`` (the A threshold, the stress at
+    which the sample counts as solid) the ladder starts from max(p, ``floor``) instead and K0
+    is taken as 1. Above it (every state of the built-in scenes) the ladder is unchanged.
+    """
+    if stress_yy >= floor:
+        return stress_yy * ratio, stress_xx / stress_yy
+    return max(mean_stress, floor) * ratio, 1.0
+
+
+class ProbeHook(Protocol):
+    """What the runner calls at every relaxed path state to be probed, with the run log it
+    records into (``log``: a branch swaps it,
+    :func:`dem_taichi.protocol.branches.run_branch_saved`);
+    :class:`dem_taichi.protocol.probing.ProbeRecorder` is one."""
+
+    log: RunLog
+
+    def __call__(self, runner: ProtocolRunner, state: RelaxedState, /) -> None: ...
+
+
+class ProtocolRunner:
+    """Runs the stages of the protocol on a :class:`dem_taichi.engine.simulation.Simulation`.
+
+    Usually driven by :func:`dem_taichi.protocol.runner.run_protocol`; the stage methods can be
+    called one by one (tests).
+    ``probe_hook(runner, state)`` is called at every relaxed path state that should be probed.
+    What the stages record goes to ``log`` (a new :class:`RunLog` unless given; the protocol
+    gives the probe recorder's); its entries also read as attributes of the runner
+    (``runner.stages``, ``runner.states``, ``runner.path_states``...).
+    """
+
+    def __init__(
+        self,
+        sim: Simulation,
+        config: ProtocolConfig,
+        probing: ProbingConfig,
+        history=None,
+        relaxed_writer=None,
+        probe_hook: ProbeHook | None = None,
+        progress: bool = False,
+        log: RunLog | None = None,
+    ) -> None:
+        self.sim = sim
+        self.config = config
+        self.probing = probing
+        self.history = history
+        self.relaxed_writer = relaxed_writer
+        self.probe_hook = probe_hook
+        self.progress = progress
+        self.log = log if log is not None else RunLog()
+        self.compression_sequence: list[dict] = []
+        self.state_A: dict | None = None
+        self.state_C: dict | None = None
+        self.aggregation_details: dict | None = None
+        self._since_output = 0
+        self.out_dir: Path | None = None
+        self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)
+        self._stage: StageProgress | None = None
+        self.stress_servo = StressServo(sim, config, self._relax, self._output, self._say)
+
+    # -- the log's entries, read here -------------------------------------------------------
+    @property
+    def stages(self) -> dict[str, StageRecord]:
+        return self.log.stages
+
+    @property
+    def states(self) -> dict[str, RelaxedState]:
+        return self.log.states
+
+    @property
+    def path_states(self) -> list[RelaxedState]:
+        return self.log.path_states
+
+    @property
+    def configurations(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        return self.log.configurations
+
+    @property
+    def checkpoints(self) -> dict[str, str]:
+        return self.log.checkpoints
+
+    @property
+    def transition(self) -> Transition | None:
+        return self.log.transition
+
+    @property
+    def transition_details(self) -> dict:
+        return self.log.transition_details
+
+    @property
+    def servo_times(self) -> dict[str, float]:
+        """The servo's time constant per stage, raised when it hunts (:class:`ServoMemory`)."""
+        return self.stress_servo.memory.times
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _say(self, text: str) -> None:
+        if not self.progress:
+            return
+        if self._stage is not None:
+            self._stage.write(text)  # above the stage's bar
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def _begin_stage(self, tag: str, total: int | None) -> StageProgress:
+        """The progress of a stage of ``total`` increments (:mod:`dem_taichi.protocol.progress`)."""
+        self._end_stage()
+        self._stage = StageProgress(tag, total, self.progress, self.bars)
+        return self._stage
+
+    def _end_stage(self) -> None:
+        if self._stage is not None:
+            self._stage.close()
+            self._stage = None
+
+    def _record(self, stage: str) -> StageRecord:
+        return self.log.stage(stage)
+
+    def _relax(self, stage: str, give_up=None) -> tuple[Measures, bool]:
+        c = self.config
+        measures, ok, steps = relax(
+            self.sim,
+            stage,
+            c.relax_unbalanced_force,
+            c.relax_kinetic_energy_per_rod,
+            c.relax_check_steps,
+            c.relax_max_steps,
+            give_up,
+        )
+        self._record(stage).steps += steps
+        self._record(stage).note(measures, True)
+        if self.history is not None:
+            self.history.append(measures)
+        return measures, ok
+
+    def _path_state(
+        self,
+        label: str,
+        stage: str,
+        increment: int,
+        targets,
+        measures: Measures,
+        relaxed: bool,
+        iterations: int = 0,
+    ) -> RelaxedState:
+        target_xx, target_yy = targets  # (σ_xx, σ_yy), NaN where not servoed
+        state = RelaxedState(
+            label, stage, increment, (float(target_xx), float(target_yy)), measures.copy(),
+            relaxed, iterations,
+        )  # fmt: skip
+        log = self.log
+        log.path_states.append(state)
+        self._record(stage).n_relaxed_states += 1
+        if label:
+            log.states[label] = state
+            sim = self.sim
+            log.configurations[label] = (sim.rod_positions(), sim.rod_angles(), sim.cell_lengths)
+            log.snapshots[label] = simulation_snapshot(sim)
+            if self.config.save_states and self.out_dir is not None:
+                path = self.out_dir / f"state_{label.replace(chr(39), '_prime')}.npz"
+                log.checkpoints[label] = str(sim.save_checkpoint(path))
+        elif (
+            self.config.save_path_states and self.out_dir is not None and stage != "isotropic_to_A"
+        ):
+            key = f"{stage}_{increment:03d}"
+            if stage == "radial":  # several radial paths: name them by their η
+                sx, sy = targets
+                key = f"radial_eta{2.0 * (sy - sx) / (sx + sy):+.3f}_{increment:03d}"
+            path = self.out_dir / f"path_{key}.npz"
+            log.checkpoints[f"path_{key}"] = str(self.sim.save_checkpoint(path))
+        if self.relaxed_writer is not None:
+            self.relaxed_writer.append(measures)
+        return state
+
+    def _maybe_probe(self, state: RelaxedState, last: bool) -> None:
+        if self.probe_hook is None or not self.probing.enabled:
+            return
+        n = self.probing.every_n_increments
+        wanted = state.label in self.probing.state_labels or (
+            n > 0 and state.increment > 0 and state.increment % n == 0 and not last
+        )
+        if wanted:
+            self.probe_hook(self, state)
+
+    # -- stage 0 ----------------------------------------------------------------------------
+    def aggregate(self) -> dict:
+        """The aggregation (gas-ageing) stage before the compression to A
+        (:func:`dem_taichi.protocol.aggregation.aggregate`); returns (and keeps as
+        ``aggregation_details``) what it did."""
+        return aggregate(self)
+
+    # -- stage 1 ----------------------------------------------------------------------------
+    def compress_to_transition(self) -> RelaxedState:
+        """Isotropic strain-controlled compression in relaxed increments until state A (after
+        the aggregation stage when ``[protocol] aggregation`` asks for one)."""
+        c = self.config
+        sim = self.sim
+        if c.aggregates and self.aggregation_details is None:
+            self.aggregate()
+        stage = "isotropic_to_A"
+        t0 = time.perf_counter()
+        record = self._record(stage)
+        h = c.compression_increment
+        tol = c.transition_pressure_tolerance(sim.scene)
+
+        def gas(measures: Measures, steps: int) -> bool:
+            # a state whose (dynamic) pressure is far below the tolerance after a few checks is
+            # clearly not loaded: do not spend the whole relaxation budget on a gas
+            return steps >= 4 * c.relax_check_steps and measures["mean_stress"] < 0.1 * tol
+
+        measures, ok = self._relax(stage, gas)
+        previous = (sim.get_state(), measures)
+        candidate: tuple[dict, Measures] | None = None
+        confirmed = 0
+        sequence = self.compression_sequence
+        progress = self._begin_stage(stage, None)  # the number of increments is not known
+        for increment in range(c.max_compression_increments):
+            p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
+            rate_p = p_now if p_now > tol else 0.0
+            self._load_compression(stage, h, rate_p, tol)
+            measures, ok = self._relax(stage, gas)
+            entry = {
+                "increment": increment,
+                "h": h,
+                "mean_stress": measures["mean_stress"],
+                "mechanical_coordination_number": measures["mechanical_coordination_number"],
+                "specific_volume": measures["specific_volume"],
+                "relaxed": ok,
+                "step": measures["step"],
+            }
+            sequence.append(entry)
+            loaded = ok and measures["mean_stress"] > tol
+            is_candidate = loaded and measures["mechanical_coordination_number"] >= (
+                c.coordination_min
+            )
+            progress.step(
+                increment,
+                f"[{stage}] inc {increment} h={h:.4g} v={measures['specific_volume']:.4f} "
+                f"p={measures['mean_stress']:.4g} "
+                f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}",
+            )
+            if candidate is None:
+                resolved = measures["mean_stress"] <= c.transition_pressure_factor * tol
+                if is_candidate and not resolved and h > c.min_compression_increment * (1 + 1e-12):
+                    sim.set_state(previous[0])
+                    h = max(0.5 * h, c.min_compression_increment)
+                    entry["restored"] = True
+                    continue
+                if is_candidate:
+                    candidate = (sim.get_state(), measures)
+                    confirmed = 0
+                    entry["candidate"] = True
+                    if c.confirm_increments == 0:
+                        break
+                else:
+                    previous = (sim.get_state(), measures)
+                continue
+            if loaded:
+                confirmed += 1
+                if confirmed >= c.confirm_increments:
+                    break
+            else:  # the load relaxed away: not a solid yet
+                entry["candidate_rejected"] = True
+                candidate = None
+                previous = (sim.get_state(), measures)
+        else:
+            raise ProtocolError(
+                f"no fluid–solid transition after {c.max_compression_increments} compression "
+                f"increments (last relaxed p = {measures['mean_stress']:.4g}, Z_m = "
+                f"{measures['mechanical_coordination_number']:.3g}); raise [protocol] "
+                "max_compression_increments or lower "
+                + (
+                    "pressure_tolerance_reduced"
+                    if c.pressure_tolerance_reduced is not None
+                    else "pressure_tolerance"
+                )
+                + " / coordination_min"
+            )
+        assert candidate is not None
+        sim.set_state(candidate[0])
+        a_measures = candidate[1]
+        # the recorded rule, applied to the relaxed sequence up to the confirmation
+        relaxed_seq = [e for e in sequence if e["relaxed"] and not e.get("restored")]
+        pressure = np.array([e["mean_stress"] for e in relaxed_seq])
+        coordination = np.array([e["mechanical_coordination_number"] for e in relaxed_seq])
+        transition = detect_transition(pressure, coordination, tol, c.coordination_min)
+        self.log.transition = transition
+        cand_index = next(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
+        last_cand = max(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
+        self.log.transition_details = {
+            "rule": transition.rule
+            + f"; confirmed over {c.confirm_increments} further relaxed increments; "
+            "increments bisected (sample restored to the previous relaxed state, increment "
+            f"halved) from {c.compression_increment:g} until p <= "
+            f"{c.transition_pressure_factor:g} x tolerance or the increment reaches "
+            f"{c.min_compression_increment:g}",
+            "pressure_tolerance": tol,
+            "coordination_min": c.coordination_min,
+            "detector_index": transition.index,
+            "protocol_index": last_cand,
+            "detector_agrees": bool(transition.index == last_cand),
+            "first_candidate_index": cand_index,
+            "mean_stress": a_measures["mean_stress"],
+            "mechanical_coordination_number": a_measures["mechanical_coordination_number"],
+            "coordination_jump": float(
+                a_measures["mechanical_coordination_number"]
+                - (relaxed_seq[last_cand - 1]["mechanical_coordination_number"] if last_cand else 0)
+            ),
+            "mean_stress_before": float(relaxed_seq[last_cand - 1]["mean_stress"])
+            if last_cand
+            else float("nan"),
+            "specific_volume": a_measures["specific_volume"],
+            "step": a_measures["step"],
+            "n_increments": len(sequence),
+            "sequence": sequence,
+        }
+        if c.pressure_tolerance_reduced is not None:
+            self.log.transition_details["pressure_tolerance_reduced"] = c.pressure_tolerance_reduced
+        if self.aggregation_details is not None:
+            self.log.transition_details["aggregation"] = self.aggregation_details
+        sim.set_strain_reference()
+        a_measures = sim.measure()
+        if self.history is not None:
+            self.history.append(a_measures)
+        state = self._path_state("A", stage, len(sequence), (math.nan, math.nan), a_measures, True)
+        self.state_A = sim.get_state()
+        record.seconds += time.perf_counter() - t0
+        self._end_stage()
+        self._say(
+            f"[A] p={a_measures['mean_stress']:.4g} v={a_measures['specific_volume']:.4f} "
+            f"Zm={a_measures['mechanical_coordination_number']:.3f}"
+        )
+        self._maybe_probe(state, last=False)
+        return state
+
+    def _load_compression(self, stage: str, h: float, p_now: float, tol: float) -> None:
+        """One compression increment h; ``tol`` the A criterion's pressure tolerance (below
+        it the gas rate applies and I is not recorded)."""
+        c = self.config
+        sim = self.sim
+        rate = c.gas_strain_rate
+        if p_now > 0:
+            rate = min(
+                rate,
+                strain_rate_cap(sim, p_now, c.pressure_tolerance, c.inertial_number_safety),
+            )
+        every = sim.scene.output.every
+        before = sim.step
+        measures = apply_strain(sim, (h, h), stage, rate, c.load_steps_min, self.history, every)
+        self._record(stage).steps += sim.step - before
+        if measures["mean_stress"] <= tol:
+            # gas: I = ε̇ d sqrt(ρ/p) is undefined/meaningless; the gas rate cap applies instead
+            measures = measures.copy()
+            measures["inertial_number"] = float("nan")
+        self._record(stage).note(measures, False, c.unbalanced_force_max)
+
+    # -- servo ------------------------------------------------------------------------------
+    def servo(
+        self,
+        stage: str,
+        axes: tuple[int, ...],
+        weights: np.ndarray,
+        targets: np.ndarray,
+        measures: Measures,
+    ) -> tuple[Measures, int]:
+        """Reach W σ = targets at a relaxed state (:class:`dem_taichi.protocol.servo.StressServo`);
+        returns the relaxed measures and the number of relaxations."""
+        return self.stress_servo(stage, axes, weights, targets, measures, self._record(stage))
+
+    def _output(self, measures: Measures, steps: int) -> None:
+        """Append loading records to the history every ``[output] every`` steps."""
+        self._since_output += steps
+        if self.history is not None and self._since_output >= self.sim.scene.output.every:
+            self.history.append(measures)
+            self._since_output = 0
+
+    # -- paths ------------------------------------------------------------------------------
+    def _log_targets(self, start: float, end: float, n: int) -> np.ndarray:
+        return start * (end / start) ** (np.arange(1, n + 1) / n)
+
+    def _check_start(self, p_a: float) -> None:
+        if self.config.target_mean_stress <= p_a:
+            raise ProtocolError(
+                f"[protocol] target_mean_stress = {self.config.target_mean_stress:g} is not above "
+                f"p at A = {p_a:.4g}: raise target_mean_stress"
+            )
+
+    def _restore_A(self) -> Measures:
+        if self.state_A is None:
+            raise ProtocolError("state A is not known yet: run compress_to_transition first")
+        self.sim.set_state(self.state_A)
+        # each path from A keeps its own output cadence (the same whether the paths run one
+        # after the other or in parallel processes)
+        self._since_output = 0
+        return self.states["A"].measures
+
+    def isotropic_path(self) -> RelaxedState:
+        """A→B: σ_xx = σ_yy = p_k up to ``target_mean_stress`` (state B)."""
+        return self._proportional_path("A_to_B", 0.0, "B", "A_to_B")
+
+    def k0_path(self) -> RelaxedState:
+        """A→C: ε_xx fixed, σ_yy servoed; the last target is p = ``target_mean_stress`` (C)."""
+        stage = "A_to_C"
+        t0 = time.perf_counter()
+        measures = self._restore_A()
+        p_a = measures["mean_stress"]
+        p_end = self.config.target_mean_stress
+        self._check_start(p_a)
+        n = self.config.path_increments
+        ratio = (p_end / p_a) ** (1.0 / n)
+        floor = self.config.transition_pressure_tolerance(self.sim.scene)
+        progress = self._begin_stage(stage, n)
+        state = None
+        k = 0
+        while True:
+            k += 1
+            s_yy, k0 = k0_step_target(
+                measures["stress_xx"], measures["stress_yy"], measures["mean_stress"], ratio, floor
+            )
+            last = 0.5 * s_yy * (1.0 + k0) >= p_end * (1 - 1e-9) or k >= 4 * n
+            if last:  # the final target is on p itself
+                weights, targets = np.array([[0.5, 0.5]]), np.array([p_end])
+                target_pair = (math.nan, math.nan)
+            else:
+                weights, targets = np.array([[0.0, 1.0]]), np.array([s_yy])
+                target_pair = (math.nan, s_yy)
+            measures, it = self.servo(stage, (1,), weights, targets, measures)
+            if last:
+                target_pair = (math.nan, measures["stress_yy"])
+            self._record(stage).servo_iterations += it
+            state = self._path_state("C" if last else "", stage, k, target_pair, measures, True, it)
+            progress.step(
+                k,
+                f"[{stage}] {k} p={measures['mean_stress']:.4g} "
+                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f} "
+                f"fabric={measures['fabric_deviator']:.4f}",
+            )
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+            if last:
+                break
+        self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
+        self.state_C = self.sim.get_state()
+        assert state is not None
+        return state
+
+    def unloading_path(self) -> RelaxedState:
+        """C→B: both axes servoed, p = p_C, q decreasing linearly to 0 (state B')."""
+        stage = "C_to_B"
+        t0 = time.perf_counter()
+        if "C" not in self.states or self.state_C is None:
+            raise ProtocolError("state C is not known yet: run k0_path first")
+        self.sim.set_state(self.state_C)
+        measures = self.states["C"].measures
+        p_c, q_c = measures["mean_stress"], measures["deviatoric_stress"]
+        n = self.config.unloading_increments
+        progress = self._begin_stage(stage, n)
+        state = None
+        for k in range(1, n + 1):
+            q = q_c * (1.0 - k / n)
+            targets = np.array([p_c - 0.5 * q, p_c + 0.5 * q])
+            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures)
+            self._record(stage).servo_iterations += it
+            label = "B'" if k == n else ""
+            state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
+            progress.step(
+                k,
+                f"[{stage}] {k}/{n} p={measures['mean_stress']:.4g} "
+                f"q={measures['deviatoric_stress']:.4g} v={measures['specific_volume']:.4f}",
+            )
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+        self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
+        assert state is not None
+        return state
+
+    def radial_path(self, eta: float, index: int) -> RelaxedState:
+        """From A, p log-spaced to ``target_mean_stress`` at constant η (state R<index>_end)."""
+        return self._proportional_path("radial", eta, f"R{index}_end", f"radial η={eta:g}")
+
+    def _proportional_path(self, stage: str, eta: float, end_label: str, tag: str) -> RelaxedState:
+        """From A, both axes servoed to σ = p_k (1 ∓ η/2), p_k log-spaced to the target mean
+        stress (η = q/p with q = σ_yy − σ_xx; η = 0 is the isotropic path)."""
+        t0 = time.perf_counter()
+        measures = self._restore_A()
+        p_a = measures["mean_stress"]
+        self._check_start(p_a)
+        n = self.config.path_increments
+        progress = self._begin_stage(tag, n)
+        state = None
+        for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
+            targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
+            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures)
+            self._record(stage).servo_iterations += it
+            label = end_label if k == n else ""
+            state = self._path_state(label, stage, k, targets, measures, True, it)
+            progress.step(k, f"[{tag}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            self._record(stage).seconds += time.perf_counter() - t0
+            self._maybe_probe(state, last=False)
+            t0 = time.perf_counter()
+        self._record(stage).seconds += time.perf_counter() - t0
+        self._end_stage()
+        assert state is not None
+        return state

@@ -1,0 +1,325 @@
+"""Resuming an interrupted protocol run: what it saves as it goes, and reading it back.
+
+The protocol (:func:`dem_taichi.protocol.runner.run_protocol`) is gas → A, then independent branches
+from A (:mod:`dem_taichi.protocol.branches`: A→B; A→C with C→B; each radial path). It saves, in
+``<run>/resume/``:
+
+- ``A.npz`` once state A is reached: the history and relaxed-state records written so far,
+  the run's log at A (:class:`dem_taichi.protocol.records.RunLog`, with the probes at A), the
+  engine state at A and the wall time so far;
+- ``branch_<k>.npz`` when the k-th branch has finished: its
+  :class:`dem_taichi.protocol.records.BranchOutcome` (history records and log), written by the
+  process that ran it.
+
+A resume (``python -m dem_taichi protocol SCENE --out DIR --resume``, or ``run_protocol(...,
+resume=True)``) checks the run's record (the same scene, by hash: :func:`dem_taichi.io.
+run_directory.reopen_run`), writes the history files again from the saved records, and runs
+only the branches without a saved outcome, from the saved state A. The serial engine is
+deterministic, so the resumed run's outputs equal those of a run never interrupted (tested
+bitwise on the smoke protocol). The work lost by an interruption is at most the branches that
+were running; a run stopped before A starts again from the gas. SIGINT/SIGTERM stop the run
+with one line saying how to resume (exit code 130/143).
+
+What a resume trusts and checks. The files are data only: a checkpoint-format ``.npz``
+(:mod:`dem_taichi.io.checkpoint`: arrays and one JSON member, read with
+``allow_pickle=False``, CRC-checked) whose JSON holds the format name and version, the kind of
+file (A or branch k, with the branch's label), the run id and scene hash of the run that wrote
+it, and the records in the encoding of :mod:`dem_taichi.protocol.resume_codec` (numbers, strings,
+arrays and this package's record dataclasses, nothing else). Loading one runs no code of the
+file. A file whose run id or scene hash differs from the run's ``run.json`` (copied from
+another run), of another kind or branch, of a newer format, damaged, truncated or not a resume
+file at all is refused with one line (:class:`ResumeFileError`, exit code 2) naming it and what
+to do: delete it (the resume then recomputes that part) or start again with ``--overwrite``.
+Pickle files left by older versions (``A.pkl``, ``branch_<k>.pkl``) are never opened: a resume
+that finds one is refused the same way. Paths inside the run folder (the state files of the
+log) are stored relative to it and resolved in the folder being resumed, so a moved run folder
+resumes. What is not checked: that the saved numbers are the ones the engine computed (a file
+edited consistently, with the right run id and hash, is believed), as for every other output of
+the run folder.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from dem_taichi.io.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from dem_taichi.protocol.resume_codec import EncodingError, decode, encode
+
+if TYPE_CHECKING:
+    from dem_taichi.protocol.records import Branch, BranchOutcome
+
+__all__ = [
+    "RESUME_DIR",
+    "RESUME_FORMAT",
+    "RESUME_FORMAT_VERSION",
+    "ResumeFileError",
+    "RunIdentity",
+    "StageA",
+    "RecordingWriter",
+    "stage_a_file",
+    "branch_file",
+    "refuse_pickles",
+    "save_stage_a",
+    "load_stage_a",
+    "save_branch",
+    "load_branches",
+    "inside_run",
+    "relative_to_run",
+    "saved_summary",
+]
+
+RESUME_DIR = "resume"
+#: the files' format name (the module's name before the role subpackages: kept, so that resume
+#: files written before still load)
+RESUME_FORMAT = "dem_taichi.protocol_resume"
+#: Bump when the layout of the payload changes; files of a greater version are refused.
+RESUME_FORMAT_VERSION = 1
+
+
+class ResumeFileError(ValueError):
+    """A resume file that cannot be used (damaged, another run's, another format): one line
+    naming the file and what to do. A ``ValueError``: the command line reports it as bad
+    input (exit code 2, :mod:`tiv_model.command_line`)."""
+
+
+@dataclass(frozen=True)
+class RunIdentity:
+    """The run a resume file belongs to: its folder, id and scene hash (from ``run.json``,
+    :class:`dem_taichi.io.run_directory.RunDirectory`). Passed to branch processes."""
+
+    path: Path
+    run_id: str
+    scene_sha256: str
+
+    @classmethod
+    def of(cls, run_dir) -> RunIdentity:
+        """The identity of a :class:`~dem_taichi.io.run_directory.RunDirectory`."""
+        return cls(Path(run_dir.path), run_dir.run_id, run_dir.record.scene_sha256)
+
+
+@dataclass(frozen=True)
+class StageA:
+    """What a resume needs from the run up to state A."""
+
+    history: list[dict]
+    relaxed: list[dict]
+    log: Any  # RunLog at A
+    state: dict[str, np.ndarray]  # Simulation.get_state() at A
+    seconds: float
+
+
+class RecordingWriter:
+    """Writes through to a history writer and keeps a copy of every record (for ``A.npz``)."""
+
+    def __init__(self, writer) -> None:
+        self.writer = writer
+        self.records: list[dict] = []
+
+    def append(self, frame: dict) -> int:
+        self.records.append(dict(frame))
+        return self.writer.append(frame)
+
+    def __getattr__(self, name):
+        return getattr(self.writer, name)
+
+
+# -- file names -----------------------------------------------------------------------------
+def stage_a_file(out_dir: str | Path) -> Path:
+    """``<run>/resume/A.npz``."""
+    return Path(out_dir) / RESUME_DIR / "A.npz"
+
+
+def branch_file(out_dir: str | Path, index: int) -> Path:
+    """``<run>/resume/branch_<index>.npz``."""
+    return Path(out_dir) / RESUME_DIR / f"branch_{index}.npz"
+
+
+def refuse_pickles(out_dir: str | Path) -> None:
+    """Refuse a resume folder holding pickles (``*.pkl``: the format of older versions, or a
+    file planted to run code): they are never opened; the user deletes them."""
+    found = sorted((Path(out_dir) / RESUME_DIR).glob("*.pkl"))
+    if found:
+        raise ResumeFileError(
+            f"{found[0]}: resume files in pickle format are not read (loading a pickle can run "
+            f"any code; dem_taichi now writes data-only .npz files); delete "
+            f"{Path(out_dir) / RESUME_DIR}/*.pkl and resume again (what they held is "
+            "recomputed), or start again with --overwrite"
+        )
+
+
+# -- paths inside the run folder ------------------------------------------------------------
+def relative_to_run(path: str | Path, run_dir: str | Path) -> str:
+    """``path`` (a file the run wrote in its folder) relative to the folder, POSIX style."""
+    relative = os.path.relpath(os.path.abspath(path), os.path.abspath(run_dir))
+    if relative.startswith(os.pardir) or os.path.isabs(relative):
+        raise ValueError(f"{path} is not inside the run folder {run_dir}")
+    return PurePosixPath(Path(relative)).as_posix()
+
+
+def inside_run(relative: str, run_dir: str | Path, source: Path) -> Path:
+    """The file ``relative`` (as :func:`relative_to_run` wrote it) in the run folder
+    ``run_dir``; a path that is absolute or leaves the folder is refused (``source`` names the
+    file that held it)."""
+    parts = PurePosixPath(relative).parts if isinstance(relative, str) else ("..",)
+    if not parts or PurePosixPath(relative).is_absolute() or ".." in parts:
+        raise ResumeFileError(
+            f"{source}: names the file {relative!r}, which is not inside the run folder; the "
+            "file is not one this package wrote: delete it and resume again"
+        )
+    return Path(run_dir).joinpath(*parts)
+
+
+def _log_relative(log, run_dir: Path):
+    checkpoints = {k: relative_to_run(v, run_dir) for k, v in log.checkpoints.items()}
+    return dataclasses.replace(log, checkpoints=checkpoints)
+
+
+def _log_absolute(log, run_dir: Path, source: Path):
+    checkpoints = {k: str(inside_run(v, run_dir, source)) for k, v in log.checkpoints.items()}
+    return dataclasses.replace(log, checkpoints=checkpoints)
+
+
+# -- writing and reading one file -----------------------------------------------------------
+def _header(run: RunIdentity, kind: str, **extra: Any) -> dict[str, Any]:
+    return {
+        "format": RESUME_FORMAT,
+        "format_version": RESUME_FORMAT_VERSION,
+        "kind": kind,
+        "run_id": run.run_id,
+        "scene_sha256": run.scene_sha256,
+        **extra,
+    }
+
+
+def _save(path: Path, header: dict[str, Any], payload: Any) -> Path:
+    """Write ``payload`` with ``header`` atomically (temporary file, fsync, os.replace)."""
+    tree, arrays = encode(payload)
+    return save_checkpoint(path, arrays, dict(header, payload=tree))
+
+
+def _refusal(path: Path, problem: str, remedy: str) -> ResumeFileError:
+    return ResumeFileError(f"{path}: {problem}; {remedy}")
+
+
+def _load(path: Path, run: RunIdentity, kind: str, remedy: str, **expected: Any) -> Any:
+    """The payload of the resume file ``path``, checked: a data-only file of this format, of
+    ``kind`` with the ``expected`` header values, written by ``run``."""
+    try:
+        arrays, meta = load_checkpoint(path)
+    except (CheckpointError, OSError) as error:
+        raise _refusal(path, f"damaged or not a resume file ({error})", remedy) from None
+    if meta.get("format") != RESUME_FORMAT:
+        raise _refusal(path, f"not a {RESUME_FORMAT} file", remedy)
+    version = meta.get("format_version")
+    if not isinstance(version, int) or version > RESUME_FORMAT_VERSION:
+        raise _refusal(
+            path, f"format version {version!r}, this code reads up to {RESUME_FORMAT_VERSION}",
+            remedy,
+        )  # fmt: skip
+    if meta.get("run_id") != run.run_id or meta.get("scene_sha256") != run.scene_sha256:
+        raise _refusal(
+            path,
+            f"written by run {str(meta.get('run_id'))[:8]} of scene sha256 "
+            f"{str(meta.get('scene_sha256'))[:12]}, not by this folder's run {run.run_id[:8]} "
+            f"(sha256 {run.scene_sha256[:12]}, {run.path / 'run.json'}): copied from another "
+            "run",
+            remedy,
+        )
+    for key, value in dict(kind=kind, **expected).items():
+        if meta.get(key) != value:
+            raise _refusal(path, f"holds {key} {meta.get(key)!r}, not {value!r}", remedy)
+    try:
+        return decode(meta.get("payload"), arrays)
+    except (EncodingError, TypeError) as error:
+        raise _refusal(path, f"damaged: {error}", remedy) from None
+
+
+# -- state A --------------------------------------------------------------------------------
+_STAGE_A_FIELDS = tuple(f.name for f in dataclasses.fields(StageA))
+
+
+def _stage_a_payload(stage: StageA) -> dict[str, Any]:
+    """StageA as a dict of its fields (the encoding builds only the record types)."""
+    return {f: getattr(stage, f) for f in _STAGE_A_FIELDS}
+
+
+_REMEDY_A = (
+    "delete it and resume again (the run then starts again from the gas), or start again with "
+    "--overwrite"
+)
+
+
+def save_stage_a(run: RunIdentity, stage: StageA) -> Path:
+    """Write ``resume/A.npz`` of ``run``."""
+    saved = dataclasses.replace(stage, log=_log_relative(stage.log, run.path))
+    return _save(stage_a_file(run.path), _header(run, "A"), _stage_a_payload(saved))
+
+
+def load_stage_a(run: RunIdentity) -> StageA | None:
+    """The saved state A of ``run``, None when it was not reached (no ``A.npz``); refuses
+    (:class:`ResumeFileError`) a file that is damaged or not this run's."""
+    path = stage_a_file(run.path)
+    if not path.exists():
+        return None
+    values = _load(path, run, "A", _REMEDY_A)
+    from dem_taichi.protocol.records import RunLog
+
+    kinds = {"history": list, "relaxed": list, "log": RunLog, "state": dict, "seconds": float}
+    if not (isinstance(values, dict) and set(values) == set(kinds)):
+        raise _refusal(path, "damaged: not the fields of state A", _REMEDY_A)
+    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
+    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
+        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_A)
+    values["log"] = _log_absolute(values["log"], run.path, path)
+    return StageA(**values)
+
+
+# -- branches -------------------------------------------------------------------------------
+_REMEDY_BRANCH = "delete it and resume again (the branch is run again)"
+
+
+def save_branch(run: RunIdentity, index: int, outcome: BranchOutcome) -> Path:
+    """Write ``resume/branch_<index>.npz`` of ``run``; the branch is written as its label."""
+    saved = dataclasses.replace(outcome, log=_log_relative(outcome.log, run.path))
+    header = _header(run, "branch", index=int(index), branch=outcome.branch.label)
+    return _save(branch_file(run.path, index), header, saved)
+
+
+def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, BranchOutcome]:
+    """The saved outcomes of ``branches`` of ``run``, for those whose file exists (the k-th
+    branch's is ``branch_<k>.npz``); refuses (:class:`ResumeFileError`) a file that is
+    damaged, not this run's, or of another branch (its label is not the branch's)."""
+    from dem_taichi.protocol.records import BranchOutcome, RunLog
+
+    done = {}
+    for index, branch in enumerate(branches):
+        path = branch_file(run.path, index)
+        if not path.exists():
+            continue
+        outcome = _load(path, run, "branch", _REMEDY_BRANCH, index=index, branch=branch.label)
+        if not (
+            isinstance(outcome, BranchOutcome)
+            and outcome.branch == branch
+            and isinstance(outcome.history, list)
+            and isinstance(outcome.log, RunLog)
+        ):
+            raise _refusal(
+                path, f"damaged: not the outcome of branch {branch.label!r}", _REMEDY_BRANCH
+            )
+        done[branch] = dataclasses.replace(outcome, log=_log_absolute(outcome.log, run.path, path))
+    return done
+
+
+def saved_summary(out_dir: str | Path, branches: Sequence[Branch]) -> str:
+    """What a resume of the run in ``out_dir`` would start from, in words."""
+    if not stage_a_file(out_dir).exists():
+        return "state A was not reached (a resume starts again from the gas)"
+    done = [b for i, b in enumerate(branches) if branch_file(out_dir, i).exists()]
+    return f"state A and {len(done)} of {len(branches)} branches from A are saved"

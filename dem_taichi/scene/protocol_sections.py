@@ -1,0 +1,838 @@
+"""Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]``
+(docs/science/dem-model.md §1.6).
+
+Both are frozen dataclasses validated by :class:`dem_taichi.scene.base.SceneSection` (type, range,
+choices; the message names the key and what is allowed); the scene loader
+(:mod:`dem_taichi.scene.config`) knows them, so a scene carrying them loads from anywhere. The
+loaded instances are ``scene.extensions["protocol"]`` and ``scene.extensions["probing"]``;
+:func:`protocol_settings` / :func:`probing_settings` return them, or the defaults when a scene
+has no such section.
+
+Units: DEM units (d = 1, disc mass = 1); stresses in force/length, compression positive; strains
+logarithmic, compression positive. Every field's unit and a one-line description are in its
+``metadata`` (``unit=``, ``doc=``), from which the documentation's scene reference is generated.
+``stress_scale_kpa`` states what one DEM stress unit means in kPa (a reading of the results, not
+an input of the physics).
+
+Symbols: p = (σ_xx + σ_yy)/2, q = σ_yy − σ_xx, η = q/p, Z_m mechanical coordination number,
+I inertial number, UFR unbalanced-force ratio (definitions: dem_taichi.io.schema).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from dem_taichi.scene.base import SceneError, SceneSection
+from dem_taichi.scene.base import field_choices as _choices
+from dem_taichi.scene.base import field_doc as _doc
+from dem_taichi.scene.base import field_list as _list
+from dem_taichi.scene.base import field_range as _range
+
+__all__ = [
+    "ProtocolConfig",
+    "ProbingConfig",
+    "protocol_settings",
+    "probing_settings",
+    "parse_number_list",
+]
+
+
+def parse_number_list(text: str, key: str) -> tuple[float, ...]:
+    """Parse a comma-separated list of numbers (``"0.5, 1.0"``; ``""`` → empty).
+
+    Lists are written as strings so that every scene round-trips through ``scene_to_toml``.
+    """
+    if not text.strip():
+        return ()
+    values = []
+    for item in text.split(","):
+        try:
+            value = float(item)
+        except ValueError:
+            raise SceneError(
+                f'{key} = {text!r}: must be a comma-separated list of numbers, e.g. "0.5, 1.0"'
+            ) from None
+        if not math.isfinite(value):
+            raise SceneError(f"{key} = {text!r}: {item.strip()!r} is not finite")
+        values.append(value)
+    return tuple(values)
+
+
+@dataclass(frozen=True)
+class ProtocolConfig(SceneSection):
+    """``[protocol]``: the loading paths of the study (docs/science/dem-model.md §1.6,
+    steps 1–3).
+
+    Stages: gas → isotropic strain-controlled compression in increments, each relaxed, until the
+    fluid–solid transition (state A) → A→B isotropic (σ_xx = σ_yy servo) up to
+    ``target_mean_stress`` (state B) → A→C K0 (ε_xx = 0, σ_yy servo) until p reaches
+    ``target_mean_stress`` (state C) → C→B at constant p, q → 0 (state B') → radial paths from A
+    at each η of ``radial_stress_ratios`` up to ``target_mean_stress``.
+
+    Fields (defaults in brackets):
+
+    - ``stress_scale_kpa`` [1.0]: kPa per DEM stress unit (force/length), stated in the results.
+    - ``target_mean_stress`` [100.0]: p at B and C and at the ends of the radial paths (DEM units).
+    - ``path_increments`` [6]: relaxed stress increments (log-spaced in p) along A→B, A→C, radial.
+    - ``unloading_increments`` [4]: relaxed increments of q (linear to 0) along C→B.
+    - ``radial_stress_ratios`` [""]: comma-separated η = q/p of the radial paths ("" = none).
+    - ``run_isotropic``, ``run_k0``, ``run_unloading`` [true]: which paths run (C→B needs K0).
+    - ``compression_increment`` [0.02]: per-axis logarithmic strain of a compression increment
+      towards A (coarse); refined by halving down to ``min_compression_increment`` [1e-5]
+      when a candidate A is found (the sample is then restored to the previous relaxed state);
+      halving stops early once a candidate has p ≤ ``transition_pressure_factor`` [4.0] ×
+      ``pressure_tolerance`` (the transition is then resolved). Frictional rods without
+      long-range forces jam abruptly: on the default scene (neutral) one increment of 0.0025
+      jumps from p ≈ 0 to p ≈ 2500, hence the small floor [1e-5].
+    - ``gas_strain_rate`` [0.05]: strain-rate cap (1/time) of the compression while p ≤
+      ``pressure_tolerance`` (the inertial-number cap of [control] applies once p > 0).
+    - ``pressure_tolerance`` [0.5]: relaxed static p above which a state carries load (DEM).
+    - ``coordination_min`` [3.0]: Z_m at or above which the contact network is taken as
+      percolating (2D rigid frictional bodies are isostatic at Z = d + 1 = 3).
+    - ``confirm_increments`` [2]: relaxed increments after a candidate A over which p must stay
+      above the tolerance (the transition rule "p stays positive").
+    - ``max_compression_increments`` [400]: give up (error) after this many increments.
+    - ``relax_unbalanced_force`` [1e-4]: UFR below which a state is relaxed (static).
+    - ``relax_kinetic_energy_per_rod`` [1.0]: and kinetic energy per rod below this (energy).
+      Loose by default: rattlers of a neutral packing carry no force, so local damping cannot
+      take their kinetic energy and a tight bound (1e-8 was tried) is never met; UFR decides.
+    - ``relax_check_steps`` [500]: steps between relaxation checks.
+    - ``relax_max_steps`` [200000]: most steps of one relaxation (then it continues, recorded
+      as not relaxed).
+    - ``stress_tolerance`` [1e-3]: |σ − σ_target|/σ_target allowed at relaxed states.
+    - ``servo_time`` [2.0]: time constant T (time units) of the stress servo,
+      ε̇ = C⁻¹ (σ_target − σ) / T, C the linear-response stiffness of the relaxed network (capped
+      by the inertial-number rate).
+    - ``servo_near_target`` [0.05], ``servo_stall_times`` [10.0], ``servo_time_max_factor``
+      [64.0]: hunting detection. The servo counts the time since every |t − Wσ| first came
+      within ``servo_near_target`` |t|; when it has not settled after ``servo_stall_times``
+      servo times T and the sample still moves (UFR ≥ 100 × ``relax_unbalanced_force``), it
+      doubles T (halves the gain) for the rest of the stage, at most up to
+      ``servo_time_max_factor`` × ``servo_time``. A healthy exponential approach from 5 % to
+      the check threshold (0.05 %) takes ln 100 ≈ 4.6 T, hence 10 T.
+    - ``servo_stiffness`` ["elastic"]: the stiffness in the servo's rate law. "elastic": the
+      linear-response stiffness C of the relaxed network at the start of each target (on a
+      plastic path the approach is then slower than T by C/C_tangent). "secant": s C, s the
+      measured secant/elastic ratio since loading began in the current direction, in
+      [``servo_softening_min``, 1], estimated once the elastic prediction of the stress change
+      exceeds ``servo_near_target`` of the target, reset to 1 when the residual changes sign
+      (:class:`dem_taichi.protocol.servo.SecantStiffness`); the loading then runs near the
+      inertial-number cap. The paper scene uses "secant"; the default stays "elastic" (the
+      validation runs of the default scene were made with it).
+    - ``servo_softening_min`` [0.01]: smallest s of the secant servo.
+    - ``servo_check_steps`` [100]: steps between servo updates.
+    - ``servo_max_steps`` [2000000]: most steps to reach one stress target (then an error).
+    - ``unbalanced_force_max`` [0.1]: UFR limit while loading; above it the servo rate is
+      halved, down to 0.1 × (and recovers by ×1.25 per check below it). Spikes from sudden
+      rearrangements can exceed it whatever the rate; they are counted in the results.
+    - ``inertial_number_safety`` [0.5]: the rates are capped at this fraction of the
+      inertial-number limit of [control] (the stress can drop within a servo update).
+    - ``save_states`` [true]: write a checkpoint ``state_<label>.npz`` at every labelled state.
+    - ``save_path_states`` [false]: also write ``path_<stage>_<increment>.npz`` at every relaxed
+      increment of the paths from A (the intermediate states of A→B, A→C, C→B, radial), for
+      frozen-network studies (``dem_taichi.response.flexible``, ``benchmarks/
+      stiffness_anisotropy.py``). Needs ``save_states``.
+    - ``load_steps_min`` [200]: fewest steps over which a strain increment is applied.
+
+    Preparation of the gas before the compression to A (issue 19): an attractive (clay-like)
+    gas left to aggregate before it is compressed forms clusters that jam much looser than the
+    gas compressed directly; the loose, attraction-stabilised structure is what collapses inside
+    the stress window (λ* ≈ 0.25). The stage "aggregation"
+    (:meth:`dem_taichi.protocol.paths.ProtocolRunner.aggregate`) runs before "isotropic_to_A" when
+    ``aggregation`` is "time" or "coordination"; every key below is unset by default, so a scene
+    without them runs (and writes its TOML and hash) as before.
+
+    - ``aggregation`` [unset = "none"]: "none" — no stage; "time" — age the gas for
+      ``aggregation_time``; "coordination" — age it until the mean coordination number
+      Z = 2 n_contacts / n_rods (contacts per rod, the history's ``coordination_number``)
+      reaches ``aggregation_coordination``, or stop at ``aggregation_max_time`` with a one-line
+      note (not an error). Z is the criterion because the engine measures it at every check for
+      free (the contact count is a by-product of the force loop); a mean cluster size would need
+      a connected-components pass over the contact graph at every check.
+    - ``aggregation_time`` [unset; needed by "time"]: ageing time at fixed cell (DEM time units,
+      d = m = 1; steps = ceil(time / Δt)).
+    - ``aggregation_coordination`` [unset; needed by "coordination"]: the Z that ends the
+      ageing (contacts per rod; checked every ``relax_check_steps`` steps).
+    - ``aggregation_max_time`` [unset; needed by "coordination"]: the cap of the ageing time
+      (DEM time units).
+    - ``aggregation_area_fraction`` [unset = the scene's [particles] initial_area_fraction, no
+      compression]: the gas is first brought to this area fraction φ (solid area / cell area)
+      by an isotropic strain-controlled compression at ``gas_strain_rate`` (over at least
+      ``load_steps_min`` steps), then aged at that fixed cell. Allowed
+      [initial_area_fraction, 1): a denser gas collides (and sticks) more often.
+    - ``aggregation_speed`` [unset = free cooling]: the rods' kinetic temperature during the
+      ageing. Unset: none is imposed, the gas cools freely under the scene's damping (inelastic
+      contacts, local damping, the attraction wells). Set: the rms velocity component of the
+      bodies is brought to this value at the start of the ageing and after every check (every
+      ``relax_check_steps`` steps), by ``aggregation_thermostat``; a speed far above
+      sqrt(F_max g_max / m) breaks the contacts it forms (DEM velocity units).
+    - ``aggregation_thermostat`` [unset = "resample"; only with ``aggregation_speed``]: how.
+      "resample" (an Andersen thermostat at every check): every body's velocity components
+      are drawn afresh from N(0, speed²) and its angular velocity from N(0, speed² M/I)
+      (equipartition), the mean velocity removed; the draws are seeded by the scene's seed and
+      the step, so a run is deterministic and resumes bit for bit. "rescale": every velocity
+      and angular velocity is multiplied by speed/rms, the factor of the whole gas. Rescaling
+      by one factor pumps energy into the modes that lose none between checks (the "flying
+      ice cube" of velocity rescaling, Harvey, Tan & Cheatham, J. Comput. Chem. 19 (1998) 726,
+      doi:10.1002/(SICI)1096-987X(199805)19:7<726::AID-JCC4>3.0.CO;2-S): measured on the
+      default scene with F_max = 300 and rolling resistance, one free-spinning rod went from
+      ω = 2 to 50 in 20 checks and the run stopped on an overlap (4 of 12 runs with it
+      stopped on a blow-up: ``benchmarks/results/study_clay_agitated.md``). Kept to reproduce
+      the runs made with it.
+    - ``pressure_tolerance_reduced`` [unset = use ``pressure_tolerance``]: the A criterion's
+      tolerance in units of the attraction, P* = p d / F_max (F_max the larger of [long_range]
+      f_max_edge and f_max_inner, d the disc diameter): the tolerance is then P* F_max / d, so
+      scenes at different F_max are prepared alike. It replaces ``pressure_tolerance`` in the
+      transition rule only (candidates, confirmation, the gas rate below it); the servo and the
+      probes keep ``pressure_tolerance`` as the floor stress of their inertial-number rate caps.
+      Refused when the scene has no long-range forces (disabled or neutral).
+    """
+
+    SECTION = "protocol"
+    stress_scale_kpa: float = field(
+        default=1.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=(
+                "kPa per DEM stress unit (force/length), stated in the results (a "
+                "reading of them, not an input of the physics)"
+            ),
+            unit="kPa/(force/length)",
+        ),
+    )
+    target_mean_stress: float = field(
+        default=100.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="p at B and C and at the ends of the radial paths",
+            unit="force/length",
+        ),
+    )
+    path_increments: int = field(
+        default=6,
+        metadata=_range(
+            1,
+            1000,
+            doc=("relaxed stress increments (log-spaced in p) along A→B, A→C and the radial paths"),
+            unit="1",
+        ),
+    )
+    unloading_increments: int = field(
+        default=4,
+        metadata=_range(1, 1000, doc="relaxed increments of q (linear to 0) along C→B", unit="1"),
+    )
+    radial_stress_ratios: str = field(
+        default="",
+        metadata=_list(doc='η = q/p of the radial paths from A, a list ("" = none)', unit="1"),
+    )
+    run_isotropic: bool = field(default=True, metadata=_doc("run the isotropic path A→B", "-"))
+    run_k0: bool = field(default=True, metadata=_doc("run the K0 path A→C (ε_xx = 0)", "-"))
+    run_unloading: bool = field(
+        default=True, metadata=_doc("run the unloading C→B at constant p (needs run_k0)", "-")
+    )
+    compression_increment: float = field(
+        default=0.02,
+        metadata=_range(
+            0.0,
+            0.2,
+            lo_open=True,
+            doc=("per-axis logarithmic strain of a (coarse) compression increment towards A"),
+            unit="1",
+        ),
+    )
+    min_compression_increment: float = field(
+        default=1e-5,
+        metadata=_range(
+            0.0,
+            0.2,
+            lo_open=True,
+            doc="smallest increment of the halving that resolves A",
+            unit="1",
+        ),
+    )
+    transition_pressure_factor: float = field(
+        default=4.0,
+        metadata=_range(
+            1.0, doc="halving stops once a candidate A has p ≤ this × pressure_tolerance", unit="1"
+        ),
+    )
+    gas_strain_rate: float = field(
+        default=0.05,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="strain-rate cap of the compression while p ≤ pressure_tolerance",
+            unit="1/time",
+        ),
+    )
+    pressure_tolerance: float = field(
+        default=0.5,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=(
+                "relaxed static p above which a state carries load (the A criterion; "
+                "the floor stress of the rate caps)"
+            ),
+            unit="force/length",
+        ),
+    )
+    coordination_min: float = field(
+        default=3.0,
+        metadata=_range(
+            0.0, doc="Z_m at or above which the contact network is taken as percolating", unit="1"
+        ),
+    )
+    confirm_increments: int = field(
+        default=2,
+        metadata=_range(
+            0,
+            100,
+            doc=(
+                "relaxed increments after a candidate A over which p must stay above the tolerance"
+            ),
+            unit="1",
+        ),
+    )
+    max_compression_increments: int = field(
+        default=400,
+        metadata=_range(1, doc="give up (error) after this many compression increments", unit="1"),
+    )
+    relax_unbalanced_force: float = field(
+        default=1e-4,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="unbalanced-force ratio below which a state is relaxed (static)",
+            unit="1",
+        ),
+    )
+    relax_kinetic_energy_per_rod: float = field(
+        default=1.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="kinetic energy per rod below which a state is relaxed (with the UFR)",
+            unit="energy",
+        ),
+    )
+    relax_check_steps: int = field(
+        default=500, metadata=_range(1, doc="steps between relaxation checks", unit="steps")
+    )
+    relax_max_steps: int = field(
+        default=200_000,
+        metadata=_range(
+            1,
+            doc=("most steps of one relaxation (then it continues, recorded as not relaxed)"),
+            unit="steps",
+        ),
+    )
+    stress_tolerance: float = field(
+        default=1e-3,
+        metadata=_range(
+            0.0,
+            0.1,
+            lo_open=True,
+            doc="|σ − σ_target| / σ_target allowed at relaxed states",
+            unit="1",
+        ),
+    )
+    servo_time: float = field(
+        default=2.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="time constant T of the stress servo, ε̇ = C⁻¹ (σ_target − σ) / T",
+            unit="time",
+        ),
+    )
+    servo_near_target: float = field(
+        default=0.05,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc=(
+                "hunting detection: the residual counts as near within this fraction of the target"
+            ),
+            unit="1",
+        ),
+    )
+    servo_stall_times: float = field(
+        default=10.0,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc="servo times T without settling after which T is doubled",
+            unit="1",
+        ),
+    )
+    servo_time_max_factor: float = field(
+        default=64.0,
+        metadata=_range(1.0, doc="largest servo time, as a multiple of servo_time", unit="1"),
+    )
+    servo_stiffness: str = field(
+        default="elastic",
+        metadata=_choices(
+            "elastic",
+            "secant",
+            doc=(
+                "stiffness of the servo's rate law: 'elastic' the linear response C of "
+                "the relaxed network, 'secant' s C with s the measured secant/elastic "
+                "ratio"
+            ),
+        ),
+    )
+    servo_softening_min: float = field(
+        default=0.01,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="smallest secant/elastic ratio s of the secant servo",
+            unit="1",
+        ),
+    )
+    servo_check_steps: int = field(
+        default=100, metadata=_range(1, doc="steps between servo updates", unit="steps")
+    )
+    servo_max_steps: int = field(
+        default=2_000_000,
+        metadata=_range(
+            1, doc="most steps to reach one stress target (then an error)", unit="steps"
+        ),
+    )
+    load_steps_min: int = field(
+        default=200,
+        metadata=_range(
+            1, doc="fewest steps over which a strain increment is applied", unit="steps"
+        ),
+    )
+    unbalanced_force_max: float = field(
+        default=0.1,
+        metadata=_range(
+            0.0,
+            None,
+            lo_open=True,
+            doc=("unbalanced-force ratio limit while loading; above it the servo rate is halved"),
+            unit="1",
+        ),
+    )
+    inertial_number_safety: float = field(
+        default=0.5,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="the rates are capped at this fraction of [control] inertial_number_max",
+            unit="1",
+        ),
+    )
+    save_states: bool = field(
+        default=True,
+        metadata=_doc("write a checkpoint state_<label>.npz at every labelled state", "-"),
+    )
+    save_path_states: bool = field(
+        default=False,
+        metadata=_doc(
+            (
+                "also write path_<stage>_<increment>.npz at every relaxed increment of "
+                "the paths from A (needs save_states)"
+            ),
+            "-",
+        ),
+    )
+    aggregation: str | None = field(
+        default=None,
+        metadata={
+            **_choices(
+                "none",
+                "time",
+                "coordination",
+                doc=(
+                    "ageing of the gas before the compression to A: 'none' (unset), 'time',"
+                    " or until a mean coordination ('coordination')"
+                ),
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_time: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc="ageing time at fixed cell (aggregation = 'time')",
+                unit="time",
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_coordination: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "mean coordination Z = 2 n_contacts / n_rods that ends the ageing "
+                    "(aggregation = 'coordination')"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_max_time: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc="cap of the ageing time (aggregation = 'coordination')",
+                unit="time",
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_area_fraction: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                1.0,
+                lo_open=True,
+                hi_open=True,
+                doc=(
+                    "area fraction φ the gas is compressed to before the ageing (unset: the"
+                    " initial one, no compression)"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_speed: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "rms velocity component the rods are kept at during the ageing, by "
+                    "aggregation_thermostat (unset: free cooling)"
+                ),
+                unit="length/time",
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_thermostat: str | None = field(
+        default=None,
+        metadata={
+            **_choices(
+                "resample",
+                "rescale",
+                doc=(
+                    "how aggregation_speed is imposed: 'resample' (unset; Andersen: fresh"
+                    " Maxwell velocities at every check) or 'rescale' (one factor for the"
+                    " whole gas)"
+                ),
+            ),
+            "optional": True,
+        },
+    )
+    pressure_tolerance_reduced: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=("the A criterion's tolerance as P* = p d / F_max (unset: pressure_tolerance)"),
+                unit="1",
+            ),
+            "optional": True,
+        },
+    )
+
+    def check(self) -> None:
+        self._check_aggregation()
+        if self.min_compression_increment > self.compression_increment:
+            raise SceneError(
+                f"[protocol] min_compression_increment = {self.min_compression_increment} > "
+                f"compression_increment = {self.compression_increment}: allowed "
+                "(0, compression_increment]"
+            )
+        ratios = parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
+        for eta in ratios:
+            if not -2.0 < eta < 2.0:
+                raise SceneError(
+                    f"[protocol] radial_stress_ratios: η = {eta} out of range: allowed (-2, 2) "
+                    "(both principal stresses must stay compressive: σ = p (1 ± η/2))"
+                )
+        if self.save_path_states and not self.save_states:
+            raise SceneError("[protocol] save_path_states = true needs save_states = true")
+        if self.run_unloading and not self.run_k0:
+            raise SceneError(
+                "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"
+            )
+
+    def _check_aggregation(self) -> None:
+        """The aggregation keys fit the criterion: each one needed is given, none is stray."""
+        mode = self.aggregation or "none"
+        needed = {
+            "none": (),
+            "time": ("aggregation_time",),
+            "coordination": ("aggregation_coordination", "aggregation_max_time"),
+        }[mode]
+        for key in needed:
+            if getattr(self, key) is None:
+                raise SceneError(f"[protocol] aggregation = {mode!r} needs {key} (not given)")
+        criterion_keys = ("aggregation_time", "aggregation_coordination", "aggregation_max_time")
+        stray = [k for k in criterion_keys if getattr(self, k) is not None and k not in needed]
+        if mode == "none":
+            stray += [
+                k
+                for k in ("aggregation_area_fraction", "aggregation_speed")
+                if getattr(self, k) is not None
+            ]
+        if self.aggregation_thermostat is not None and self.aggregation_speed is None:
+            raise SceneError(
+                f"[protocol] aggregation_thermostat = {self.aggregation_thermostat!r} is used "
+                "only with aggregation_speed (not given): set aggregation_speed or remove "
+                "aggregation_thermostat"
+            )
+        if stray:
+            uses = {
+                "aggregation_time": "aggregation = 'time'",
+                "aggregation_coordination": "aggregation = 'coordination'",
+                "aggregation_max_time": "aggregation = 'coordination'",
+            }
+            key = stray[0]
+            raise SceneError(
+                f"[protocol] {key} = {getattr(self, key)!r} is used only with "
+                f"{uses.get(key, 'aggregation = time | coordination')}; this scene has "
+                f"aggregation = {mode!r}: remove {key} or set aggregation"
+            )
+
+    @property
+    def aggregates(self) -> bool:
+        """Whether the run has an aggregation stage before the compression to A."""
+        return (self.aggregation or "none") != "none"
+
+    def check_scene(self, scene) -> None:
+        """The checks that need the rest of the scene ([particles], [long_range]): an
+        aggregation area fraction below the gas's, a reduced pressure tolerance without
+        long-range forces. Run with the whole-scene checks at load and by ``Scene.replace``
+        (:func:`dem_taichi.scene.config._check_scene`), and again by :func:`protocol_settings`."""
+        phi = self.aggregation_area_fraction
+        phi0 = scene.particles.initial_area_fraction
+        if phi is not None and phi < phi0:
+            raise SceneError(
+                f"[protocol] aggregation_area_fraction = {phi!r} is below [particles] "
+                f"initial_area_fraction = {phi0!r}: allowed [{phi0!r}, 1) (the gas is only "
+                "compressed before ageing)"
+            )
+        lr = scene.long_range
+        if self.pressure_tolerance_reduced is not None and not (
+            lr.enabled and lr.pattern in ("acidic", "basic")
+        ):
+            state = "enabled = false" if not lr.enabled else f"pattern = {lr.pattern!r}"
+            raise SceneError(
+                f"[protocol] pressure_tolerance_reduced = {self.pressure_tolerance_reduced!r} "
+                f"needs long-range forces (P* = p d / F_max); this scene's [long_range] has "
+                f"{state}: give pressure_tolerance instead"
+            )
+
+    def transition_pressure_tolerance(self, scene) -> float:
+        """The p above which a relaxed state carries load in the A criterion (DEM units):
+        ``pressure_tolerance``, or P* F_max / d when ``pressure_tolerance_reduced`` = P* is set
+        (F_max the larger of [long_range] f_max_edge, f_max_inner; d the disc diameter)."""
+        if self.pressure_tolerance_reduced is None:
+            return self.pressure_tolerance
+        self.check_scene(scene)
+        lr = scene.long_range
+        f_max = max(lr.f_max_edge, lr.f_max_inner)
+        return self.pressure_tolerance_reduced * f_max / scene.particles.diameter
+
+    @property
+    def radial_ratios(self) -> tuple[float, ...]:
+        """η of the radial paths, parsed from ``radial_stress_ratios``."""
+        return parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
+
+
+@dataclass(frozen=True)
+class ProbingConfig(SceneSection):
+    """``[probing]``: elastic probes at states of every path (docs/science/dem-model.md §1.6,
+    step 4).
+
+    Fields (defaults in brackets):
+
+    - ``enabled`` [true]: probe at all.
+    - ``states`` ["A, B, C, B'"]: labelled states probed (any of A, B, C, B', R<k>_end for the
+      k-th radial path); "" = none.
+    - ``every_n_increments`` [2]: also probe every n-th relaxed increment of each path (0 = only
+      the labelled states).
+    - ``dynamic`` [true]: run the dynamic strain probes (amplitude sweep).
+    - ``dynamic_states`` ["all"]: where the dynamic sweep runs: "all" probed states, or a
+      comma-separated list of probe labels (A, B, C, B', R<k>_end, or <path>_<increment> such
+      as A_to_C_4 for an unlabelled increment); the linear-response probe runs at every probed
+      state. On large scenes (``paper``) the sweep costs ~3000× the linear response, so it is
+      kept at one state as the check of the linear response there.
+    - ``amplitude_min`` [1e-9], ``amplitude_max`` [1e-3], ``amplitudes_per_decade`` [1]:
+      the log-spaced strain amplitudes of the sweep (docs/science/dem-model.md §1.6:
+      ≈1e-7…1e-3). The sweep starts at
+      1e-9 because a state reached by monotonic loading sits on its yield surface: measured on
+      the smoke scene at the end of K0 loading, the continued-loading branch (+Δε_yy) is
+      already plastic at 1e-7 (secant 22e3 against 40e3 on reversal), the ± average agrees
+      with the linear response only at 1e-8 and below.
+    - ``apply_steps`` [200]: fewest steps over which a probe strain is applied (more when the
+      inertial-number cap needs it).
+    - ``relax_unbalanced_force`` [1e-7]: UFR at which a probe is relaxed (stricter than the path:
+      a probe of 1e-6 changes σ by ~1e-4 relative).
+    - ``relax_max_steps`` [60000]: most relaxation steps of one probe.
+    - ``plateau_tolerance`` [0.02]: relative tolerance of the elastic-plateau rule
+      (:func:`dem_taichi.analysis.arrays.elastic_plateau`).
+    - ``linear`` [true]: run the linear-response probe.
+    - ``sliding_contacts`` ["stuck"]: how contacts at the Coulomb cap respond in the
+      linear-response probe ("stuck": spring k_t, the small-amplitude reversal branch that a
+      ± probe mostly sees; "free": stay on the cap).
+    """
+
+    SECTION = "probing"
+    enabled: bool = field(default=True, metadata=_doc("probe at all", "-"))
+    states: str = field(
+        default="A, B, C, B'",
+        metadata=_list(doc='labelled states probed (A, B, C, B\', R<k>_end); "" = none', unit="-"),
+    )
+    every_n_increments: int = field(
+        default=2,
+        metadata=_range(
+            0,
+            doc=(
+                "also probe every n-th relaxed increment of each path (0: only the labelled states)"
+            ),
+            unit="1",
+        ),
+    )
+    dynamic: bool = field(
+        default=True, metadata=_doc("run the dynamic strain probes (amplitude sweep)", "-")
+    )
+    dynamic_states: str = field(
+        default="all",
+        metadata=_list(
+            doc=('where the dynamic sweep runs: "all" probed states, or a list of probe labels'),
+            unit="-",
+        ),
+    )
+    amplitude_min: float = field(
+        default=1e-9,
+        metadata=_range(
+            0.0, 0.1, lo_open=True, doc="smallest strain amplitude of the dynamic sweep", unit="1"
+        ),
+    )
+    amplitude_max: float = field(
+        default=1e-3,
+        metadata=_range(
+            0.0, 0.1, lo_open=True, doc="largest strain amplitude of the dynamic sweep", unit="1"
+        ),
+    )
+    amplitudes_per_decade: int = field(
+        default=1,
+        metadata=_range(1, 20, doc="log-spaced amplitudes per decade of the sweep", unit="1"),
+    )
+    apply_steps: int = field(
+        default=200,
+        metadata=_range(1, doc="fewest steps over which a probe strain is applied", unit="steps"),
+    )
+    relax_unbalanced_force: float = field(
+        default=1e-7,
+        metadata=_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc="unbalanced-force ratio at which a probe is relaxed",
+            unit="1",
+        ),
+    )
+    relax_max_steps: int = field(
+        default=60_000, metadata=_range(1, doc="most relaxation steps of one probe", unit="steps")
+    )
+    plateau_tolerance: float = field(
+        default=0.02,
+        metadata=_range(
+            0.0, 1.0, lo_open=True, doc="relative tolerance of the elastic-plateau rule", unit="1"
+        ),
+    )
+    linear: bool = field(default=True, metadata=_doc("run the linear-response probe", "-"))
+    sliding_contacts: str = field(
+        default="stuck",
+        metadata=_choices(
+            "stuck",
+            "free",
+            doc=(
+                "contacts at the Coulomb cap in the linear response: 'stuck' spring "
+                "k_t, 'free' stay on the cap"
+            ),
+        ),
+    )
+
+    def check(self) -> None:
+        if self.amplitude_min > self.amplitude_max:
+            raise SceneError(
+                f"[probing] amplitude_min = {self.amplitude_min} > amplitude_max = "
+                f"{self.amplitude_max}: allowed (0, amplitude_max]"
+            )
+
+    @property
+    def state_labels(self) -> tuple[str, ...]:
+        """Labels of ``states``, parsed (comma-separated, blanks stripped)."""
+        return tuple(s.strip() for s in self.states.split(",") if s.strip())
+
+    def runs_dynamic(self, label: str) -> bool:
+        """Whether the dynamic sweep runs at the probe labelled ``label``."""
+        if not self.dynamic:
+            return False
+        if self.dynamic_states.strip() == "all":
+            return True
+        return label in {s.strip() for s in self.dynamic_states.split(",") if s.strip()}
+
+    @property
+    def amplitudes(self) -> tuple[float, ...]:
+        """Log-spaced amplitudes from ``amplitude_min`` to ``amplitude_max`` (both included)."""
+        lo, hi = math.log10(self.amplitude_min), math.log10(self.amplitude_max)
+        n = max(int(round((hi - lo) * self.amplitudes_per_decade)), 0) + 1
+        if n == 1:
+            return (self.amplitude_min,)
+        return tuple(10 ** (lo + (hi - lo) * k / (n - 1)) for k in range(n))
+
+
+def protocol_settings(scene) -> ProtocolConfig:
+    """The scene's ``[protocol]`` section, or the defaults when it has none; refuses
+    (:class:`SceneError`, naming the key) a section that does not fit the rest of the scene
+    (:meth:`ProtocolConfig.check_scene`)."""
+    config = scene.extensions.get("protocol", ProtocolConfig())
+    config.check_scene(scene)
+    return config
+
+
+def probing_settings(scene) -> ProbingConfig:
+    """The scene's ``[probing]`` section, or the defaults when it has none."""
+    return scene.extensions.get("probing", ProbingConfig())
