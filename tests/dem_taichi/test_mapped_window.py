@@ -200,7 +200,7 @@ def test_rectangle_and_disc_union_areas_by_hand():
 
 @pytest.mark.parametrize("overrides", [[], ["particles.spacing=0.5"], ["particles.n_spheres=3"]])
 def test_disc_union_area_is_the_one_the_dem_uses(overrides):
-    """The area the DEM's v divides by (rod_geometry(scene).solid_area, measures.py)."""
+    """The area the DEM's v divides by (rod_geometry(scene).solid_area, engine/measures.py)."""
     scene = scene_with_overrides(load_scene("smoke"), overrides)
     p = scene.particles
     area = rod_disc_union_area(p.n_spheres, p.spacing, p.diameter)
