@@ -341,6 +341,7 @@ def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) ->
         relaxed.append(record)
     for f in dataclasses.fields(saved.log):
         setattr(runner.log, f.name, getattr(saved.log, f.name))
+    runner.sim.work = runner.log.work  # the saved ledger goes on filling
     runner.sim.set_state(saved.state)
     runner.state_A = saved.state
 

@@ -40,6 +40,7 @@ from dem_taichi.measures import Measures
 from dem_taichi.protocol_config import ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, StageRecord
 from dem_taichi.quasistatic import _control, strain_rate_cap
+from dem_taichi.work_profile import doing
 
 if TYPE_CHECKING:
     from dem_taichi.engine import Simulation
@@ -270,6 +271,7 @@ class StressServo:
         self.say = say
         self.memory = memory if memory is not None else ServoMemory()
 
+    @doing("servo")
     def __call__(
         self,
         stage: str,
