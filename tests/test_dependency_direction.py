@@ -235,8 +235,8 @@ def test_layer_check_catches_imports_up_and_sideways():
     graph = {
         "dem_taichi.physics.forcelaw": {"dem_taichi.engine.simulation"},  # up
         "dem_taichi.engine.simulation": {"dem_taichi.physics.forcelaw", "dem_taichi.engine.state"},
-        "dem_taichi.engine.state": {"dem_taichi.analysis.report", "dem_taichi._moved"},  # beside
-        "dem_taichi.analysis.report": {"dem_taichi.io.schema", "dem_taichi"},
+        "dem_taichi.engine.state": {"dem_taichi.analysis.findings", "dem_taichi._moved"},  # beside
+        "dem_taichi.analysis.findings": {"dem_taichi.io.schema", "dem_taichi"},
         "dem_taichi.io.schema": set(),
         "dem_taichi.helpers": set(),  # a flat module again
         "dem_taichi": {"dem_taichi.engine.simulation"},  # the face imports eagerly
@@ -244,7 +244,7 @@ def test_layer_check_catches_imports_up_and_sideways():
     }
     assert layer_violations(graph) == [
         "dem_taichi imports dem_taichi.engine.simulation (it may import ['dem_taichi._moved'])",
-        "dem_taichi.engine.state imports dem_taichi.analysis.report: analysis is beside engine",
+        "dem_taichi.engine.state imports dem_taichi.analysis.findings: analysis is beside engine",
         "dem_taichi.helpers is in no layer (put it in a role subpackage)",
         "dem_taichi.physics.forcelaw imports dem_taichi.engine.simulation: engine is above physics",
     ]

@@ -1,6 +1,6 @@
 """Numpy-only analysis of DEM results: the findings over arrays (:mod:`~dem_taichi.analysis.arrays`)
 and over a run directory (:mod:`~dem_taichi.analysis.findings`), the mapped window
-(:mod:`~dem_taichi.analysis.mapped_window`), reports and figures. No Taichi; imports
+(:mod:`~dem_taichi.analysis.mapped_window`) and figures. No Taichi; imports
 :mod:`dem_taichi.io` and :mod:`dem_taichi.scene` below it, never the engine.
 """
 

@@ -5,7 +5,7 @@ Nothing here imports Taichi, so results can be analysed on a machine without it.
 (λ* and its fit, the moduli's p-exponent, E_oed,h/E_oed,v, K0, the fabric and its isotropy
 within the sampling noise, E_oed,v/p, the agreement of the probing methods) are written once
 here, against :class:`PathArrays` and :class:`ProbeArrays`; the report of a run in memory
-(:func:`dem_taichi.analysis.report.findings`) and the reader of a run folder
+(:func:`dem_taichi.protocol.report.findings`) and the reader of a run folder
 (:func:`dem_taichi.analysis.findings.run_findings`) build those arrays and call the same functions.
 
 Symbols
@@ -175,7 +175,7 @@ def fabric_sampling_noise(n_rods: int) -> float:
 
 # --- the study's findings over arrays -----------------------------------------------------------
 # One implementation of each finding, written against arrays of the relaxed states and probes
-# of a run. Two readers build these arrays: dem_taichi.analysis.report.findings from a
+# of a run. Two readers build these arrays: dem_taichi.protocol.report.findings from a
 # ProtocolResult in memory (report.md) and dem_taichi.analysis.findings.run_findings from a run
 # folder's files (summaries, sweeps, benchmarks); both then call the functions below, so the two
 # cannot disagree.

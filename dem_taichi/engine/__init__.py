@@ -1,5 +1,6 @@
 """The DEM engine: :class:`~dem_taichi.engine.simulation.Simulation`, its state and views, the
-device arrays, the Taichi runtime, cell control, the history measures and the engine's errors.
+device arrays, the Taichi runtime, cell control, the history measures, the work ledger and the
+engine's errors.
 
 Imports :mod:`dem_taichi.scene`, :mod:`dem_taichi.io`, :mod:`dem_taichi.kernels` and
 :mod:`dem_taichi.physics` below it; nothing above.

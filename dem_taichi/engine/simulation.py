@@ -79,6 +79,7 @@ from dem_taichi.engine.measures import BondedMeasures, Measures
 from dem_taichi.engine.runtime import ensure_runtime
 from dem_taichi.engine.simulation_state import SimulationState
 from dem_taichi.engine.simulation_views import SimulationViews
+from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene, load_scene
 from dem_taichi.scene.geometry import (
@@ -190,6 +191,8 @@ class Simulation(SimulationViews, SimulationState):
         self.n_bodies = self.n_discs if self.bonded else self.n_rods
         self._real = self.runtime.numpy_real
         self._stage = "gas"
+        #: a work ledger (:mod:`dem_taichi.engine.work_profile`) every ``run`` call adds to, or None
+        self.work: WorkLedger | None = None
         self._rates = np.zeros(2)
         self._control = CellControl.fixed()
         self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
@@ -512,17 +515,23 @@ class Simulation(SimulationViews, SimulationState):
         measures: BondedMeasures | None = None
         done = 0
         next_output = output_every
+        clock = _time.perf_counter
+        kernel_seconds = measure_seconds = 0.0
         try:
             while done < n_steps:
                 todo = min(chunk, n_steps - done, next_output - done)
+                t0 = clock()
                 self._set_rates(control.rates)
                 self._advance(todo, fire)
+                kernel_seconds += clock() - t0
                 done += todo
                 if bar is not None:
                     bar.update(todo)
                 if done == next_output or done == n_steps:
                     next_output = done + output_every
+                    t0 = clock()
                     measures = self.measure()
+                    measure_seconds += clock() - t0
                     if writer is not None:
                         writer.append(measures)
                     if callback is not None:
@@ -530,4 +539,8 @@ class Simulation(SimulationViews, SimulationState):
         finally:
             if bar is not None:
                 bar.close()
+            if self.work is not None:
+                add_work(
+                    self.work, control.stage, current_work(), done, kernel_seconds, measure_seconds
+                )
         return measures if measures is not None else self.measure()

@@ -47,6 +47,7 @@ import numpy as np
 
 from dem_taichi.analysis.arrays import Transition, detect_transition
 from dem_taichi.engine.measures import Measures
+from dem_taichi.engine.work_profile import doing
 from dem_taichi.io.vtk_snapshots import simulation_snapshot
 from dem_taichi.protocol.aggregation import aggregate
 from dem_taichi.protocol.progress import StageProgress, use_bars
@@ -119,7 +120,7 @@ class ProtocolRunner:
         self.relaxed_writer = relaxed_writer
         self.probe_hook = probe_hook
         self.progress = progress
-        self.log = log if log is not None else RunLog()
+        self.log = log if log is not None else RunLog()  # the simulation's work goes there
         self.compression_sequence: list[dict] = []
         self.state_A: dict | None = None
         self.state_C: dict | None = None
@@ -129,6 +130,17 @@ class ProtocolRunner:
         self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)
         self._stage: StageProgress | None = None
         self.stress_servo = StressServo(sim, config, self._relax, self._output, self._say)
+
+    @property
+    def log(self) -> RunLog:
+        """The run log the runner writes; setting it also points the simulation's work ledger
+        (:mod:`dem_taichi.engine.work_profile`) at the new log's."""
+        return self._log
+
+    @log.setter
+    def log(self, log: RunLog) -> None:
+        self._log = log
+        self.sim.work = log.work
 
     # -- the log's entries, read here -------------------------------------------------------
     @property
@@ -251,7 +263,8 @@ class ProtocolRunner:
             n > 0 and state.increment > 0 and state.increment % n == 0 and not last
         )
         if wanted:
-            self.probe_hook(self, state)
+            with doing("probe"):
+                self.probe_hook(self, state)
 
     # -- stage 0 ----------------------------------------------------------------------------
     def aggregate(self) -> dict:
@@ -288,8 +301,9 @@ class ProtocolRunner:
         for increment in range(c.max_compression_increments):
             p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
             rate_p = p_now if p_now > tol else 0.0
-            self._load_compression(stage, h, rate_p, tol)
-            measures, ok = self._relax(stage, gas)
+            with doing("search" if candidate is None else "confirm"):
+                self._load_compression(stage, h, rate_p, tol)
+                measures, ok = self._relax(stage, gas)
             entry = {
                 "increment": increment,
                 "h": h,

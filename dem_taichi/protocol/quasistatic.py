@@ -24,6 +24,7 @@ import numpy as np
 
 from dem_taichi.engine.measures import Measures
 from dem_taichi.engine.simulation import CellControl, Simulation
+from dem_taichi.engine.work_profile import doing
 
 __all__ = [
     "strain_rate_cap",
@@ -55,6 +56,7 @@ def _control(stage: str, rate_x: float, rate_y: float) -> CellControl:
     return CellControl.strain_rate(rate_x, rate_y, stage=stage)
 
 
+@doing("relax")
 def relax(
     sim: Simulation,
     stage: str,
@@ -87,6 +89,7 @@ def relax(
     return measures, False, steps
 
 
+@doing("strain")
 def apply_strain(
     sim: Simulation,
     strain: tuple[float, float],
@@ -109,6 +112,7 @@ def apply_strain(
     return sim.run(n, control, output_every=output_every or n, writer=writer)
 
 
+@doing("hold")
 def hold(sim: Simulation, stage: str, n_steps: int) -> Measures:
     """Run ``n_steps`` steps at fixed cell (strain rates 0) under the stage label ``stage``;
     returns the measures at the end (no history records: the caller writes them)."""

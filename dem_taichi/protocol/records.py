@@ -29,6 +29,7 @@ import numpy as np
 
 from dem_taichi.analysis.arrays import Transition
 from dem_taichi.engine.measures import Measures
+from dem_taichi.engine.work_profile import WorkLedger, merge_work, work_rows
 
 __all__ = [
     "ProtocolError",
@@ -112,7 +113,9 @@ class RunLog:
     the ParaView files); ``checkpoints`` name → path of the saved state files; ``probes`` the
     :class:`dem_taichi.protocol.probing.ProbeResult` of every probed state in order, with the
     probing wall times (total, dynamic sweeps, linear responses, per stage); ``transition`` and
-    ``transition_details`` the fluid–solid transition (state A) and how it was found.
+    ``transition_details`` the fluid–solid transition (state A) and how it was found; ``work``
+    where the steps and wall time went, by stage and kind of work (a ledger of
+    :mod:`dem_taichi.engine.work_profile`, filled by the simulation the runner drives).
     """
 
     stages: dict[str, StageRecord] = field(default_factory=dict)
@@ -130,6 +133,7 @@ class RunLog:
     probing_seconds_by_stage: dict[str, float] = field(default_factory=dict)
     transition: Transition | None = None
     transition_details: dict = field(default_factory=dict)
+    work: WorkLedger = field(default_factory=dict)
 
     def stage(self, name: str) -> StageRecord:
         """The record of stage ``name``, created empty on first use."""
@@ -156,6 +160,7 @@ class RunLog:
         for stage, seconds in branch.probing_seconds_by_stage.items():
             by_stage = self.probing_seconds_by_stage
             by_stage[stage] = by_stage.get(stage, 0.0) + seconds
+        merge_work(self.work, branch.work)
 
 
 BranchKind = Literal["isotropic", "k0", "radial"]
@@ -343,6 +348,7 @@ class ProtocolResult:
             "probing_linear_seconds": self.probing_linear_seconds,
             "total_seconds": self.total_seconds,
             "workers": self.workers,
+            "work": work_rows(self.log.work, {k: v.seconds for k, v in self.stages.items()}),
             "files": self.files,
         }
 

@@ -6,7 +6,8 @@ RunLog` and the dataclasses inside it) and the engine state (a dict of numpy arr
 would store them in a few lines, but loading a pickle runs whatever code the file names; this
 encoding can only ever build numbers, strings, lists, tuples, dicts, numpy arrays and numpy
 scalars of numeric types, and instances of the dataclasses listed in :func:`_known_types`
-(their ``__init__`` only, with exactly their fields). A branch from A
+(their ``__init__`` only, with their fields: no unknown field, and a missing one only where it
+has a default, so that files written before a field was added still read). A branch from A
 (:class:`dem_taichi.protocol.records.Branch`, the field ``branch`` of a ``BranchOutcome``) is
 stored as its label, the text ``"radial 1 0.5"`` that earlier versions stored, and read back
 with ``Branch.parse``: the files of either version read in the other.
@@ -235,7 +236,13 @@ def _decode_object(body: Any, arrays: dict, types: dict[str, type], where: str) 
     if cls is None:
         raise EncodingError(f"{where}: {name!r} is not a record type a resume file may hold")
     expected = {f.name for f in dataclasses.fields(cls)}
-    if set(fields) != expected:
+    # a field added since the file was written takes its default (RunLog.work, added later)
+    required = {
+        f.name
+        for f in dataclasses.fields(cls)
+        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    }
+    if not required <= set(fields) <= expected:
         raise EncodingError(
             f"{where}: {name} fields {sorted(fields)} are not the expected {sorted(expected)}"
         )

@@ -343,6 +343,7 @@ def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) ->
         relaxed.append(record)
     for f in dataclasses.fields(saved.log):
         setattr(runner.log, f.name, getattr(saved.log, f.name))
+    runner.sim.work = runner.log.work  # the saved ledger goes on filling
     runner.sim.set_state(saved.state)
     runner.state_A = saved.state
 
@@ -369,7 +370,7 @@ def _write_paraview(out: Path, log: RunLog) -> None:
 
 
 def _write_figures_and_report(result: ProtocolResult, sim) -> None:
-    from dem_taichi.analysis.report import write_figures, write_report
+    from dem_taichi.protocol.report import write_figures, write_report
 
     try:
         result.files.update(write_figures(result, sim.geometry))

@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dem_taichi.engine.measures import Measures
+from dem_taichi.engine.work_profile import doing
 from dem_taichi.protocol.quasistatic import _control, strain_rate_cap
 from dem_taichi.protocol.records import ProtocolError, StageRecord
 from dem_taichi.scene.protocol_sections import ProtocolConfig
@@ -270,6 +271,7 @@ class StressServo:
         self.say = say
         self.memory = memory if memory is not None else ServoMemory()
 
+    @doing("servo")
     def __call__(
         self,
         stage: str,

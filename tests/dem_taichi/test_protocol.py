@@ -529,7 +529,7 @@ def test_report_findings_equal_the_folder_findings(run):
     from dem_taichi.analysis.findings import path_arrays as folder_path_arrays
     from dem_taichi.analysis.findings import probe_arrays as folder_probe_arrays
     from dem_taichi.analysis.findings import run_findings
-    from dem_taichi.analysis.report import findings, path_arrays, probe_arrays
+    from dem_taichi.protocol.report import findings, path_arrays, probe_arrays
 
     summary = json.loads((Path(run.out_dir) / "summary.json").read_text())
     in_memory = path_arrays(run)
@@ -565,3 +565,22 @@ def test_report_findings_equal_the_folder_findings(run):
     k0 = sorted((p, r) for _, path, p, r in linear if path == "A_to_C")
     assert iso == folder["iso_ratio"]
     assert [p for p, _ in k0] == folder["k0_p"] and [r for _, r in k0] == folder["k0_ratio"]
+
+
+def test_the_work_ledger_accounts_for_every_step_of_every_stage(run):
+    """dem_taichi/engine/work_profile.py: the ledger's steps add up to each stage's, the stages'
+    kinds of work are the ones that ran, and summary.json and the report carry the ledger."""
+    from dem_taichi.engine.work_profile import stage_totals
+
+    work = run.log.work
+    for name, record in run.stages.items():
+        assert stage_totals(work, name)[0] == record.steps, name
+    assert {"search/strain", "search/relax", "confirm/relax"} <= set(work["isotropic_to_A"])
+    assert set(work["A_to_B"]) == {"servo", "servo/relax"}
+    assert set(work["probe"]) <= {"probe/relax", "probe/strain"}
+    summary = json.loads((run.out_dir / "summary.json").read_text())
+    assert {(r["stage"], r["work"]) for r in summary["work"]} >= {
+        ("A_to_B", "servo"),
+        ("A_to_B", "overhead"),
+    }
+    assert "## Where the steps go" in (run.out_dir / "report.md").read_text()

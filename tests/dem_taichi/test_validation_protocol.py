@@ -168,7 +168,7 @@ def test_k0_rods_lie_down_and_horizontal_stiffness_grows(pattern, root):
     ],
 )
 def test_compressibility_linear_in_ln_v_ln_p_beyond_A(pattern, root):
-    from dem_taichi.analysis.report import compressibility_slope
+    from dem_taichi.protocol.report import compressibility_slope
 
     run = get_run(pattern, root)
     iso = run.path("A_to_B")
@@ -205,7 +205,7 @@ def test_paper_scene_findings_on_the_isotropic_path_and_k0_fabric(root):
     keeps the fabric isotropic and E_h ≈ E_v (measured with the elastic servo: max |β_yy − β_xx|
     = 0.009, E_h/E_v 0.93–1.06), the rods lie down along K0 (0.000 → −0.173) and ln v – ln p is
     linear beyond A (R² = 0.95)."""
-    from dem_taichi.analysis.report import compressibility_slope
+    from dem_taichi.protocol.report import compressibility_slope
 
     run = get_paper_run(root)
     noise = fabric_sampling_noise(run.n_rods)

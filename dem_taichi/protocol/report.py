@@ -28,6 +28,7 @@ from dem_taichi.analysis.arrays import (
     stiffness_ratio,
     stress_ratio_at,
 )
+from dem_taichi.engine.work_profile import work_rows
 
 __all__ = ["write_figures", "write_report", "findings", "compressibility_slope"]
 
@@ -167,6 +168,39 @@ def _fmt(value, digits: int = 4) -> str:
     return f"{value:.{digits}g}"
 
 
+def _work_lines(result) -> list[str]:
+    """The section 'Where the steps go' (:mod:`dem_taichi.engine.work_profile`): steps and seconds
+    by stage and kind of work; empty when the run kept no ledger."""
+    log = getattr(result, "log", None)
+    ledger = getattr(log, "work", None)
+    if not ledger:
+        return []
+    rows = work_rows(ledger, {k: v.seconds for k, v in result.stages.items()})
+    lines = [
+        "",
+        "## Where the steps go",
+        "",
+        "Work labels: the quasi-static block (strain, relax, hold) inside what asked for it "
+        "(servo, probe, search/confirm of state A); overhead = the stage's wall time outside the "
+        "step kernels and the measures (Python between launches, state copies, the servo's "
+        "algebra, file writes). Probes run under the stage 'probe'.",
+        "",
+        "| stage | work | steps | share of the stage's steps | kernel (s) | measures (s) "
+        "| overhead (s) | steps per kernel s | calls |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["work"] == "overhead":
+            lines.append(f"| {r['stage']} | overhead | | | | | {r['overhead_seconds']:.1f} | | |")
+            continue
+        lines.append(
+            f"| {r['stage']} | {r['work']} | {r['steps']} | {100 * r['share_of_steps']:.0f}% | "
+            f"{r['kernel_seconds']:.1f} | {r['measure_seconds']:.1f} | | "
+            f"{_fmt(r['steps_per_kernel_second'], 3)} | {r['calls']} |"
+        )
+    return lines
+
+
 def write_report(result, path: Path | None = None) -> Path:
     """Write ``report.md`` of a run (see the module docstring); returns its path."""
     out = Path(result.out_dir)
@@ -209,6 +243,7 @@ def write_report(result, path: Path | None = None) -> Path:
         f"| probing | {result.probing_seconds:.1f} | {100 * result.probing_seconds / total:.0f}% "
         "| | | | | | |"
     )
+    lines += _work_lines(result)
     t = result.transition_details
     lines += [
         "",
