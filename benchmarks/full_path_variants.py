@@ -214,7 +214,7 @@ def _other_protocol_processes() -> list[str]:
             cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if "dem_taichi protocol" in cmd or "dem_taichi.protocol.runner" in cmd:
+        if "dem_taichi protocol" in cmd or "dem_taichi.protocol" in cmd:
             found.append(f"{entry.name}: {cmd.strip()}")
     return found
 

@@ -493,7 +493,7 @@ def test_debug_shows_the_error_itself(tmp_path, monkeypatch):
     [
         (["dem_taichi", "run", "scene.toml", "--out", "o"], "is empty"),
         (["dem_taichi", "protocol", "scene.toml", "--out", "o", "--quiet"], "is empty"),
-        (["dem_taichi.protocol.runner", "scene.toml", "--out", "o"], "is empty"),
+        (["dem_taichi.protocol", "scene.toml", "--out", "o"], "is empty"),
         (["tiv_model", "k0", "--sigma-v-max", "1", "--out", "k0.nc"], "greater than --p0"),
         (["bridge.pipeline", "--history", "none.nc", "--out", "b"], "no such file"),
     ],
