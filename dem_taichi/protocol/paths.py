@@ -447,10 +447,17 @@ class ProtocolRunner:
         weights: np.ndarray,
         targets: np.ndarray,
         measures: Measures,
+        last: bool = True,
     ) -> tuple[Measures, int]:
-        """Reach W σ = targets at a relaxed state (:class:`dem_taichi.protocol.servo.StressServo`);
-        returns the relaxed measures and the number of relaxations."""
-        return self.stress_servo(stage, axes, weights, targets, measures, self._record(stage))
+        """Reach W σ = targets at a relaxed state (:class:`dem_taichi.protocol.servo.StressServo`),
+        within ``stress_tolerance`` at the ``last`` state of a path and within the inner
+        tolerance (``path_stress_tolerance``) inside it; returns the relaxed measures and the
+        number of relaxations."""
+        c = self.config
+        tolerance = c.stress_tolerance if last else c.inner_stress_tolerance()
+        return self.stress_servo(
+            stage, axes, weights, targets, measures, self._record(stage), tolerance
+        )
 
     def _output(self, measures: Measures, steps: int) -> None:
         """Append loading records to the history every ``[output] every`` steps."""
@@ -509,7 +516,7 @@ class ProtocolRunner:
             else:
                 weights, targets = np.array([[0.0, 1.0]]), np.array([s_yy])
                 target_pair = (math.nan, s_yy)
-            measures, it = self.servo(stage, (1,), weights, targets, measures)
+            measures, it = self.servo(stage, (1,), weights, targets, measures, last)
             if last:
                 target_pair = (math.nan, measures["stress_yy"])
             self._record(stage).servo_iterations += it
@@ -546,7 +553,7 @@ class ProtocolRunner:
         for k in range(1, n + 1):
             q = q_c * (1.0 - k / n)
             targets = np.array([p_c - 0.5 * q, p_c + 0.5 * q])
-            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures)
+            measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures, k == n)
             self._record(stage).servo_iterations += it
             label = "B'" if k == n else ""
             state = self._path_state(label, stage, k, tuple(targets), measures, True, it)
@@ -579,7 +586,7 @@ class ProtocolRunner:
         state = None
         for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
             targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
-            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures)
+            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures, k == n)
             self._record(stage).servo_iterations += it
             label = end_label if k == n else ""
             state = self._path_state(label, stage, k, targets, measures, True, it)

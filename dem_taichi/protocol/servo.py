@@ -174,6 +174,16 @@ def initial_jacobian(sim: Simulation, pressure_tolerance: float) -> np.ndarray:
     return np.array([[20.0 * p, 5.0 * p], [5.0 * p, 20.0 * p]])
 
 
+def _drive_kind(wanted: np.ndarray, rate_cap: float, factor: float) -> str:
+    """What limits the servo's rates over a check (the profile's work label,
+    :mod:`dem_taichi.engine.work_profile`): ``cap`` the inertial-number cap on some axis,
+    ``cap_ufr`` the same cap lowered while UFR is high, ``approach`` the gain (the rates are the
+    residual's share, below the cap: the exponential approach to the target)."""
+    if np.any(np.abs(wanted) >= rate_cap):
+        return "cap" if factor >= 1.0 else "cap_ufr"
+    return "approach"
+
+
 def rate_factor(factor: float, ufr: float, unbalanced_force_max: float) -> float:
     """Halve the loading rate while UFR > ``unbalanced_force_max``; recover ×1.25 below."""
     if math.isfinite(ufr) and ufr > unbalanced_force_max:
@@ -280,8 +290,10 @@ class StressServo:
         targets: np.ndarray,
         measures: Measures,
         record: StageRecord,
+        tolerance: float | None = None,
     ) -> tuple[Measures, int]:
-        """Reach W σ = targets at a relaxed state by servo-controlled strain rates on ``axes``.
+        """Reach W σ = targets at a relaxed state by servo-controlled strain rates on ``axes``,
+        within ``tolerance`` relative (default ``stress_tolerance``).
 
         ``weights`` (n_ctrl × 2) maps (σ_xx, σ_yy) to the controlled quantities; ``axes`` lists
         the axes (0 = x, 1 = y) driven by the servo (as many as controls), the others are held
@@ -337,11 +349,12 @@ class StressServo:
         residual = targets - _controlled(weights, measures)
         near_steps = 0  # steps since the residual first came near the target (or last doubling)
         modal = ModalGain(len(targets))
-        tolerance = c.stress_tolerance * float(np.mean(scale))
+        relative = c.stress_tolerance if tolerance is None else float(tolerance)
+        tolerance = relative * float(np.mean(scale))
         while steps < c.servo_max_steps:
             residual = targets - _controlled(weights, measures)
             ufr = measures["unbalanced_force_ratio"]
-            if np.all(np.abs(residual) <= 0.5 * c.stress_tolerance * scale) and (
+            if np.all(np.abs(residual) <= 0.5 * relative * scale) and (
                 math.isfinite(ufr) and ufr < 100.0 * c.relax_unbalanced_force
             ):
                 # close and nearly static: fix the cell, relax, and check the relaxed state
@@ -354,7 +367,7 @@ class StressServo:
                     f"    [{stage}] relaxed check {checks}: residual/target "
                     f"{np.round(residual / scale, 5).tolist()} relaxed={ok} steps={steps}"
                 )
-                if ok and np.all(np.abs(residual) <= c.stress_tolerance * scale):
+                if ok and np.all(np.abs(residual) <= relative * scale):
                     return measures, checks
                 modal.restart()
                 continue
@@ -382,10 +395,12 @@ class StressServo:
             )
             rates = np.zeros(2)
             corrected = modal.scaled(residual, tolerance)
-            rates[control_axes] = np.clip(_matvec(gain, corrected), -rate_cap, rate_cap)
-            measures = sim.run(
-                c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
-            )
+            wanted = _matvec(gain, corrected)
+            rates[control_axes] = np.clip(wanted, -rate_cap, rate_cap)
+            with doing(_drive_kind(wanted, rate_cap, factor)):
+                measures = sim.run(
+                    c.servo_check_steps, _control(stage, float(rates[0]), float(rates[1]))
+                )
             if c.servo_stiffness == "secant":
                 controlled = _controlled(weights, measures)
                 secant.update(
@@ -399,6 +414,6 @@ class StressServo:
         raise ProtocolError(
             f"[{stage}] stress targets {targets.tolist()} not reached within "
             f"{c.servo_max_steps} steps (residual {residual.tolist()}, tolerance "
-            f"{c.stress_tolerance:g} relative); raise [protocol] servo_max_steps, or lower "
+            f"{relative:g} relative); raise [protocol] servo_max_steps, or lower "
             "servo_time for a faster servo"
         )

@@ -229,3 +229,27 @@ def test_modal_gain_halves_an_overshooting_mode_only():
     tiny.scaled(np.array([1e-4]), tolerance=1e-3)
     tiny.scaled(np.array([-1e-4]), tolerance=1e-3)
     assert tiny.factors.tolist() == [1.0] and tiny.overshoots == 0
+
+
+def test_an_inner_path_state_stops_at_the_path_tolerance_and_an_end_at_the_strict_one():
+    """``path_stress_tolerance``: a state inside a path (``last=False``) is accepted within it,
+    in fewer steps (the approach costs ∝ ln(1/tolerance)); the state ending a path keeps
+    ``stress_tolerance``; unset, both use ``stress_tolerance``."""
+    results = {}
+    for inner, last in ((None, False), (0.02, False), (0.02, True)):
+        plant = DelayedPlant(10.0)
+        config = ProtocolConfig(
+            servo_time=8.0, servo_max_steps=400_000, path_stress_tolerance=inner
+        )
+        runner = ProtocolRunner(plant, config, ProbingConfig(enabled=False))
+        targets = np.array([15.0, 15.0])
+        measures, _ = runner.servo("A_to_B", (0, 1), np.eye(2), targets, plant.measure(), last)
+        error = max(abs(measures["stress_xx"] / 15.0 - 1), abs(measures["stress_yy"] / 15.0 - 1))
+        results[inner, last] = (error, plant.step)
+    strict = ProtocolConfig().stress_tolerance
+    assert results[None, False][0] <= strict
+    assert results[0.02, True][0] <= strict
+    assert strict < results[0.02, False][0] <= 0.02  # stopped early, within the path tolerance
+    assert results[0.02, False][1] < 0.8 * results[None, False][1]
+    assert ProtocolConfig(path_stress_tolerance=0.02).inner_stress_tolerance() == 0.02
+    assert ProtocolConfig().inner_stress_tolerance() == strict
