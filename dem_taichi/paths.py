@@ -53,7 +53,7 @@ from dem_taichi.progress import StageProgress, use_bars
 from dem_taichi.protocol_config import ProbingConfig, ProtocolConfig
 from dem_taichi.protocol_records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.quasistatic import apply_strain, relax, strain_rate_cap
-from dem_taichi.servo import StressServo
+from dem_taichi.servo import ServoMemory, StressServo
 from dem_taichi.work_profile import doing
 
 if TYPE_CHECKING:
@@ -480,9 +480,11 @@ class ProtocolRunner:
         if self.state_A is None:
             raise ProtocolError("state A is not known yet: run compress_to_transition first")
         self.sim.set_state(self.state_A)
-        # each path from A keeps its own output cadence (the same whether the paths run one
-        # after the other or in parallel processes)
+        # each path from A keeps its own output cadence and starts the servo afresh (the time
+        # constants it doubled while hunting): the same whether the paths run one after the other,
+        # in parallel processes or resumed
         self._since_output = 0
+        self.stress_servo.memory = ServoMemory()
         return self.states["A"].measures
 
     def isotropic_path(self) -> RelaxedState:
