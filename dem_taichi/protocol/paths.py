@@ -53,7 +53,7 @@ from dem_taichi.protocol.aggregation import aggregate
 from dem_taichi.protocol.progress import StageProgress, use_bars
 from dem_taichi.protocol.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.protocol.records import ProtocolError, RelaxedState, RunLog, StageRecord
-from dem_taichi.protocol.servo import StressServo
+from dem_taichi.protocol.servo import ServoMemory, StressServo
 from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
 
 if TYPE_CHECKING:
@@ -481,9 +481,11 @@ class ProtocolRunner:
         if self.state_A is None:
             raise ProtocolError("state A is not known yet: run compress_to_transition first")
         self.sim.set_state(self.state_A)
-        # each path from A keeps its own output cadence (the same whether the paths run one
-        # after the other or in parallel processes)
+        # each path from A keeps its own output cadence and starts the servo afresh (the time
+        # constants it doubled while hunting): the same whether the paths run one after the other,
+        # in parallel processes or resumed
         self._since_output = 0
+        self.stress_servo.memory = ServoMemory()
         return self.states["A"].measures
 
     def isotropic_path(self) -> RelaxedState:

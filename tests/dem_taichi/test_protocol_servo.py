@@ -253,3 +253,16 @@ def test_an_inner_path_state_stops_at_the_path_tolerance_and_an_end_at_the_stric
     assert results[0.02, False][1] < 0.8 * results[None, False][1]
     assert ProtocolConfig(path_stress_tolerance=0.02).inner_stress_tolerance() == 0.02
     assert ProtocolConfig().inner_stress_tolerance() == strict
+
+
+def test_a_path_from_A_starts_the_servo_afresh():
+    """Serial, parallel and resumed runs agree: each path from A resets the servo's memory
+    (the time constants it doubled while hunting)."""
+    plant = DelayedPlant(10.0)
+    runner = ProtocolRunner(plant, ProtocolConfig(), ProbingConfig(enabled=False))
+    runner.stress_servo.memory.times["radial"] = 8.0
+    runner.state_A = {"dummy": True}
+    plant.set_state = lambda state: None
+    runner.log.states["A"] = SimpleNamespace(measures=plant.measure())
+    runner._restore_A()
+    assert runner.stress_servo.memory.times == {}
