@@ -11,7 +11,13 @@ import math
 import time
 
 from dem_taichi.engine.failures import BlowUpError
-from dem_taichi.protocol.quasistatic import apply_strain, hold, resample_speed, rescale_speed
+from dem_taichi.protocol.quasistatic import (
+    apply_strain,
+    hold,
+    refresh_speed,
+    resample_speed,
+    rescale_speed,
+)
 from dem_taichi.protocol.records import ProtocolError
 
 __all__ = ["aggregate"]
@@ -30,8 +36,10 @@ def aggregate(runner) -> dict:
        ("coordination"), at most ``aggregation_max_time`` — then a one-line note, not an
        error. With ``aggregation_speed`` the bodies' velocities are brought to it at the
        start and after every check, by ``aggregation_thermostat``: drawn afresh
-       (:func:`~dem_taichi.protocol.quasistatic.resample_speed`, the default) or rescaled by one
-       factor (:func:`~dem_taichi.protocol.quasistatic.rescale_speed`).
+       (:func:`~dem_taichi.protocol.quasistatic.resample_speed`, the default), rescaled by one
+       factor (:func:`~dem_taichi.protocol.quasistatic.rescale_speed`) or refreshed in part, keeping
+       exp(−Δt/τ) of each velocity over the check interval Δt (:func:`~dem_taichi.
+       quasistatic.refresh_speed`, τ = ``aggregation_thermostat_time``).
 
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
@@ -86,12 +94,19 @@ def aggregate(runner) -> dict:
     target_z = c.aggregation_coordination if c.aggregation == "coordination" else None
     speed = c.aggregation_speed
     seed = sim.scene.scene.seed
+    keep = 0.0
+    if c.aggregation_thermostat_time is not None:
+        keep = math.exp(-c.relax_check_steps * dt / c.aggregation_thermostat_time)
+        details["thermostat_time"] = c.aggregation_thermostat_time
+        details["thermostat_keep"] = keep
 
     def thermostat() -> None:
         if speed is None:
             return
         if details["thermostat"] == "rescale":
             rescale_speed(sim, speed)
+        elif details["thermostat"] == "langevin":
+            refresh_speed(sim, speed, seed, keep)
         else:
             resample_speed(sim, speed, seed)
 

@@ -34,6 +34,7 @@ __all__ = [
     "rms_velocity_component",
     "rescale_speed",
     "resample_speed",
+    "refresh_speed",
 ]
 
 
@@ -167,5 +168,36 @@ def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
     spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
     state["velocity"] = drawn.astype(velocity.dtype)
     state["angular_velocity"] = rng.normal(0.0, spin, size=omega.shape).astype(omega.dtype)
+    sim.set_state(state)
+    return before
+
+
+def refresh_speed(sim: Simulation, speed: float, seed: int, keep: float) -> float:
+    """Refresh every body's velocity partly towards the kinetic temperature of ``speed`` (a
+    Langevin thermostat applied at intervals: the Ornstein–Uhlenbeck update of the velocities
+    over one interval); returns the rms velocity component before.
+
+    v ← a v + sqrt(1 − a²) ξ and ω ← a ω + sqrt(1 − a²) ζ, with a = ``keep`` = exp(−Δt/τ)
+    (Δt the interval, τ the velocities' correlation time), ξ ~ N(0, speed²) per component with
+    its mean over the bodies removed (the momentum kept) and ζ ~ N(0, speed² M/I)
+    (equipartition). A gas at the temperature stays there on average (a² + 1 − a² = 1); a = 0
+    is :func:`resample_speed`, a → 1 no thermostat. Unlike a fresh draw, a body's velocity and
+    a cluster's collective motion last ~τ; unlike :func:`rescale_speed`, no mode is pumped
+    beyond the temperature. Seeded as :func:`resample_speed` (deterministic, resumable).
+    """
+    if not 0.0 <= keep < 1.0:
+        raise ValueError(f"keep = {keep!r}: allowed values are 0 <= keep < 1")
+    state = sim.get_state()
+    velocity = state["velocity"]
+    before = rms_velocity_component(velocity)
+    rng = np.random.Generator(np.random.PCG64([int(seed), 0x4C414E47, int(sim.step)]))
+    noise = rng.normal(0.0, speed, size=velocity.shape)
+    noise -= noise.mean(axis=0, keepdims=True)
+    omega = state["angular_velocity"]
+    spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
+    fresh = math.sqrt(1.0 - keep * keep)
+    state["velocity"] = (keep * velocity + fresh * noise).astype(velocity.dtype)
+    spun = rng.normal(0.0, spin, size=omega.shape)
+    state["angular_velocity"] = (keep * omega + fresh * spun).astype(omega.dtype)
     sim.set_state(state)
     return before

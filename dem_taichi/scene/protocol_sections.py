@@ -186,7 +186,11 @@ class ProtocolConfig(SceneSection):
       default scene with F_max = 300 and rolling resistance, one free-spinning rod went from
       ω = 2 to 50 in 20 checks and the run stopped on an overlap (4 of 12 runs with it
       stopped on a blow-up: ``benchmarks/results/study_clay_agitated.md``). Kept to reproduce
-      the runs made with it.
+      the runs made with it. "langevin": a partial refresh at every check (the
+      Ornstein–Uhlenbeck update over the check interval Δt), v ← a v + sqrt(1 − a²) ξ with
+      a = exp(−Δt/τ), τ = ``aggregation_thermostat_time`` (needed by it, refused otherwise): the
+      temperature is kept on average, each velocity and each cluster's collective motion lasts
+      ~τ (τ → 0 is "resample"); :func:`dem_taichi.protocol.quasistatic.refresh_speed`.
     - ``pressure_tolerance_reduced`` [unset = use ``pressure_tolerance``]: the A criterion's
       tolerance in units of the attraction, P* = p d / F_max (F_max the larger of [long_range]
       f_max_edge and f_max_inner, d the disc diameter): the tolerance is then P* F_max / d, so
@@ -572,11 +576,29 @@ class ProtocolConfig(SceneSection):
             **_choices(
                 "resample",
                 "rescale",
+                "langevin",
                 doc=(
                     "how aggregation_speed is imposed: 'resample' (unset; Andersen: fresh"
-                    " Maxwell velocities at every check) or 'rescale' (one factor for the"
-                    " whole gas)"
+                    " Maxwell velocities at every check), 'rescale' (one factor for the"
+                    " whole gas) or 'langevin' (a partial refresh at every check: the"
+                    " velocities keep their memory over aggregation_thermostat_time)"
                 ),
+            ),
+            "optional": True,
+        },
+    )
+    aggregation_thermostat_time: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "correlation time τ of the 'langevin' thermostat's velocities (needed by"
+                    " it, refused otherwise)"
+                ),
+                unit="time",
             ),
             "optional": True,
         },
@@ -636,6 +658,14 @@ class ProtocolConfig(SceneSection):
                 for k in ("aggregation_area_fraction", "aggregation_speed")
                 if getattr(self, k) is not None
             ]
+        langevin = self.aggregation_thermostat == "langevin"
+        if langevin != (self.aggregation_thermostat_time is not None):
+            raise SceneError(
+                "[protocol] aggregation_thermostat_time is given with aggregation_thermostat = "
+                "'langevin' and only then (here: aggregation_thermostat = "
+                f"{self.aggregation_thermostat!r}, aggregation_thermostat_time = "
+                f"{self.aggregation_thermostat_time!r})"
+            )
         if self.aggregation_thermostat is not None and self.aggregation_speed is None:
             raise SceneError(
                 f"[protocol] aggregation_thermostat = {self.aggregation_thermostat!r} is used "

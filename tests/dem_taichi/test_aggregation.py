@@ -101,7 +101,12 @@ def test_rescale_speed_sets_the_rms_velocity_component():
 
 @pytest.mark.parametrize(
     ("thermostat", "function"),
-    [(None, "resample_speed"), ("resample", "resample_speed"), ("rescale", "rescale_speed")],
+    [
+        (None, "resample_speed"),
+        ("resample", "resample_speed"),
+        ("rescale", "rescale_speed"),
+        ("langevin", "refresh_speed"),
+    ],
 )
 def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermostat, function):
     """With aggregation_speed the thermostat (a fresh draw by default, or the rescale) runs at
@@ -118,6 +123,8 @@ def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermo
 
     monkeypatch.setattr(stage_module, function, counting)
     keys = {"aggregation_thermostat": thermostat} if thermostat else {}
+    if thermostat == "langevin":
+        keys["aggregation_thermostat_time"] = 0.5
     scene = attractive_scene(
         aggregation="time", aggregation_time=3.0, aggregation_speed=0.25, **keys
     )
@@ -156,6 +163,53 @@ def test_resample_speed_draws_maxwell_velocities_seeded_by_seed_and_step():
     # another seed draws another gas
     resample_speed(sim, 0.3, 8)
     assert not np.array_equal(sim.get_state()["velocity"], drawn)
+
+
+def test_refresh_speed_is_the_ornstein_uhlenbeck_update_seeded_by_seed_and_step():
+    """refresh_speed keeps a = ``keep`` of each velocity and adds sqrt(1 − a²) of a draw
+    ξ ~ N(0, s²) (mean removed: the momentum kept) and ζ ~ N(0, s² M/I), PCG64 seeded by (seed,
+    0x4C414E47, step): the same numbers as written out here; keep = 0 forgets the velocities
+    like the fresh draw; repeated on a frozen gas it brings the rms speed to s whatever it was
+    (the stationary variance a² s² + (1 − a²) s² = s²), and it refuses keep outside [0, 1)."""
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.quasistatic import refresh_speed, rms_velocity_component
+
+    sim = Simulation(attractive_scene())
+    state = sim.get_state()
+    state["angular_velocity"][0] = 50.0
+    sim.set_state(state)
+    before = sim.get_state()
+    keep = 0.6
+    assert refresh_speed(sim, 0.3, 7, keep) == pytest.approx(
+        rms_velocity_component(before["velocity"]), rel=1e-12
+    )
+    after = sim.get_state()
+    rng = np.random.Generator(np.random.PCG64([7, 0x4C414E47, sim.step]))
+    noise = rng.normal(0.0, 0.3, size=after["velocity"].shape)
+    noise -= noise.mean(axis=0, keepdims=True)
+    spin = 0.3 * np.sqrt(sim.body.mass / sim.body.inertia)
+    fresh = np.sqrt(1 - keep**2)
+    np.testing.assert_array_equal(after["velocity"], keep * before["velocity"] + fresh * noise)
+    spun = rng.normal(0.0, spin, size=after["angular_velocity"].shape)
+    np.testing.assert_array_equal(
+        after["angular_velocity"], keep * before["angular_velocity"] + fresh * spun
+    )
+    np.testing.assert_allclose(
+        after["velocity"].sum(axis=0), keep * before["velocity"].sum(axis=0), atol=1e-9
+    )
+    # stationary at s: from a gas 10x too hot, the spinning rod included, without dynamics
+    state = sim.get_state()
+    state["velocity"] *= 10.0 * 0.3 / rms_velocity_component(state["velocity"])
+    sim.set_state(state)
+    for _ in range(60):  # a^60 ~ 5e-14: the start is forgotten
+        refresh_speed(sim, 0.3, 7, keep)
+        sim.step += 1  # a new draw each time (the draw is seeded by the step)
+    final = sim.get_state()
+    assert rms_velocity_component(final["velocity"]) == pytest.approx(0.3, rel=0.1)
+    assert abs(final["angular_velocity"][0]) < 10 * spin
+    for bad in (-0.1, 1.0):
+        with pytest.raises(ValueError, match="keep"):
+            refresh_speed(sim, 0.3, 7, bad)
 
 
 def test_free_ageing_raises_the_coordination_number_at_fixed_cell():
@@ -436,7 +490,16 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
          ["aggregation_thermostat", "only with aggregation_speed"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
          'aggregation_thermostat = "nose-hoover"\n',
-         ["aggregation_thermostat", "resample", "rescale"]),
+         ["aggregation_thermostat", "resample", "rescale", "langevin"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
+         'aggregation_thermostat = "langevin"\n',
+         ["aggregation_thermostat_time", "'langevin'"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
+         "aggregation_thermostat_time = 2.0\n",
+         ["aggregation_thermostat_time", "only then"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
+         'aggregation_thermostat = "langevin"\naggregation_thermostat_time = 0.0\n',
+         ["aggregation_thermostat_time", "out of range"]),
     ],
 )  # fmt: skip
 def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
