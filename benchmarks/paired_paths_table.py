@@ -5,10 +5,11 @@ Usage::
     python benchmarks/paired_paths_table.py SEED.json [SEED.json ...] [--base base] [--out FILE.md]
 
 Each SEED.json is written by ``benchmarks/paired_paths.py`` (one seed, every variant from the
-same state A). For each variant against ``--base``: the wall time and steps of the branches
-(per seed and their ratio to the base), and, per finding, the base's mean and seed-to-seed
-standard deviation (the replica noise), the mean paired difference (variant − base) with its
-95 % interval (Student t over the seeds) and whether the variant passes the criterion stated
+same state A; files of the same seed, run at different times from the same A, are merged).
+For each variant against ``--base``: the wall time and steps of the branches (per seed and
+their ratio to the base), and, per finding, the base's mean and seed-to-seed standard
+deviation (the replica noise), the mean paired difference (variant − base) with its 95 %
+interval (Student t over the seeds) and whether the variant passes the criterion stated
 before the runs: |mean paired difference| ≤ 0.5 × the base's seed-to-seed standard deviation.
 """
 
@@ -115,13 +116,31 @@ def table(seeds: list[dict], base: str) -> list[str]:
     return lines
 
 
+def merge_by_seed(files: list[dict]) -> list[dict]:
+    """One entry per seed: the variants of several files of the same seed (and the same state
+    A, checked by its p and v) put together, in the order given."""
+    seeds: dict[int, dict] = {}
+    for data in files:
+        seed = seeds.get(data["seed"])
+        if seed is None:
+            seeds[data["seed"]] = {**data, "variants": dict(data["variants"])}
+            continue
+        for name, variant in data["variants"].items():
+            a_here = variant["findings"].get("mean_stress@A")
+            a_there = next(iter(seed["variants"].values()))["findings"].get("mean_stress@A")
+            if a_here != a_there:
+                raise SystemExit(f"seed {data['seed']}: files with different states A")
+            seed["variants"][name] = variant
+    return list(seeds.values())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("seeds", nargs="+", type=Path)
     parser.add_argument("--base", default="base")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
-    seeds = [json.loads(p.read_text()) for p in args.seeds]
+    seeds = merge_by_seed([json.loads(p.read_text()) for p in args.seeds])
     text = "\n".join(table(seeds, args.base))
     print(text)
     if args.out:
