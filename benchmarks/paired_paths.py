@@ -118,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.engine.work_profile import merge_work
     from dem_taichi.protocol.branches import branch_names
     from dem_taichi.protocol.paths import ProtocolRunner
     from dem_taichi.protocol.probing import ProbeRecorder
@@ -177,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         merged.states = {"A": state_a}
         merged.path_states = list(log.path_states)
         merged.probes = list(log.probes)
-        merged.work = {k: {w: list(e) for w, e in v.items()} for k, v in log.work.items()}
+        merge_work(merged.work, log.work)  # a copy: the stage to A's ledger
         branch_seconds = {}
         for label, branch_log, seconds in outcomes:
             merged.merge(branch_log)

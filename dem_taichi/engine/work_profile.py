@@ -67,24 +67,21 @@ def add_work(
     steps: int,
     kernel_seconds: float,
     measure_seconds: float,
+    calls: int = 1,
 ) -> None:
-    """Add one run call to ``ledger``."""
+    """Add ``calls`` run calls (one by default) to ``ledger``."""
     entry = ledger.setdefault(stage, {}).setdefault(work, [0, 0.0, 0.0, 0])
     entry[0] += int(steps)
     entry[1] += float(kernel_seconds)
     entry[2] += float(measure_seconds)
-    entry[3] += 1
+    entry[3] += int(calls)
 
 
 def merge_work(into: WorkLedger, other: WorkLedger) -> None:
     """Add the ledger ``other`` (a branch run in its own process) to ``into``."""
     for stage, works in other.items():
         for work, (steps, kernel, measure, calls) in works.items():
-            entry = into.setdefault(stage, {}).setdefault(work, [0, 0.0, 0.0, 0])
-            entry[0] += int(steps)
-            entry[1] += float(kernel)
-            entry[2] += float(measure)
-            entry[3] += int(calls)
+            add_work(into, stage, work, int(steps), kernel, measure, int(calls))
 
 
 def stage_totals(ledger: WorkLedger, stage: str) -> tuple[int, float, float, int]:
