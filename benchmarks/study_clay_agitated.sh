@@ -14,12 +14,19 @@
 #   Raggv10   the sparser gas aged at rms speed 0.5, no rolling resistance
 #   RRaggv10r the same with rolling resistance
 #   RRfree10  rolling resistance, the sparser gas at initial speed 2.0 cooling freely (no thermostat)
+# Then (2026-12-02, fourth session, from the commit that added them) the Langevin thermostat on
+# RRaggv10's setting, so that one setting is seen under four ways of keeping the gas hot
+# (rescale RRaggv10, resample RRaggv10r, free RRfree10, Langevin), its memory tau:
+#   RRl10     tau = 10 time units (the check interval is 0.54: a = 0.947 per check)
+#   RRl100    tau = 100 (a = 0.9946: close to free cooling with a slow refresh)
 # Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
-#   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON]
+#   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON] [ONLY]
+#   ONLY: a bash regular expression; only the runs whose name matches it (e.g. '^RRl')
 set -u
-OUT=${1:?usage: study_clay_agitated.sh OUT [PYTHON]}
+OUT=${1:?usage: study_clay_agitated.sh OUT [PYTHON] [ONLY]}
 PY=${2:-python}
+ONLY=${3:-}
 mkdir -p "$OUT"
 common=(--set particles.initial_speed=0.5 --set protocol.gas_strain_rate=0.002
         --set 'protocol.radial_stress_ratios=""' --set 'probing.dynamic_states=""'
@@ -36,6 +43,7 @@ rescale=(--set protocol.aggregation_thermostat=rescale)
 run() {
   local name=$1; shift
   [ -f "$OUT/$name/summary.json" ] && return
+  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
   local start; start=$(date +%s)
   "$PY" -m dem_taichi protocol default --out "$OUT/$name" --quiet "${common[@]}" "$@" \
     > "$OUT/$name.log" 2>&1
@@ -53,6 +61,12 @@ done
 for seed in 11 2 12; do
   run RRaggv10r_s$seed "${rr[@]}" "${loose[@]}" --set scene.seed=$seed
   run Raggv10_s$seed "${loose[@]}" --set scene.seed=$seed
+done
+for seed in 11 2 12; do
+  for tau in 10 100; do
+    run RRl${tau}_s$seed "${rr[@]}" "${loose[@]}" --set protocol.aggregation_thermostat=langevin \
+      --set protocol.aggregation_thermostat_time=$tau --set scene.seed=$seed
+  done
 done
 for seed in 11 2 12; do
   run RRfree10_s$seed "${rr[@]}" --set particles.initial_speed=2.0 \
