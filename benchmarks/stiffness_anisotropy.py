@@ -368,7 +368,9 @@ def markdown(rows: list[dict], dyn: list[dict], run_dir: Path) -> str:
 
 def variant_summary(rows: list[dict]) -> dict[str, dict]:
     """Per variant: isotropic-path E_h/E_v mean ± sd, E_h/E_v at C, B, B′, E_v/p at B, and the
-    p-exponent of E_v along the isotropic path (least squares of ln E_v on ln p)."""
+    p-exponent of E_v along the isotropic path (least squares of ln E_v on ln p, over the states
+    where both are positive: a stable network can still give E_v ≤ 0 under a variant that frees
+    a mechanism, e.g. sliding contacts on a small sample)."""
     out = {}
     for n in dict.fromkeys(r["variant"] for r in rows):
         every = [r for r in rows if r["variant"] == n]
@@ -381,9 +383,10 @@ def variant_summary(rows: list[dict]) -> dict[str, dict]:
             return at[label][key] if label in at else math.nan
 
         exponent = math.nan
-        if len(iso) >= 2:
-            lp = np.log([r["p"] for r in iso])
-            le = np.log([r["e_v"] for r in iso])
+        positive = [r for r in iso if r["p"] > 0 and r["e_v"] > 0]
+        if len(positive) >= 2:
+            lp = np.log([r["p"] for r in positive])
+            le = np.log([r["e_v"] for r in positive])
             exponent = float(np.polyfit(lp, le, 1)[0]) if np.ptp(lp) > 0 else math.nan
         out[n] = dict(
             iso_mean=float(ratios.mean()) if ratios.size else math.nan,

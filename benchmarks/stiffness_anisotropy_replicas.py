@@ -71,6 +71,9 @@ def run_findings(rows: list[dict]) -> dict[str, dict]:
             return r["ratio"] if r is not None and r["stable"] else math.nan
 
         iso = [r for r in rows if r["variant"] == name and r["path"] in ISOTROPIC and r["stable"]]
+        # the fit is over the states where p and E_v are positive (a variant that frees a
+        # mechanism can give E_v <= 0 on a small sample: stiffness_anisotropy.variant_summary)
+        iso = [r for r in iso if r["p"] > 0 and r["e_v"] > 0]
         exponent = math.nan
         if len(iso) >= 3:
             exponent = float(
