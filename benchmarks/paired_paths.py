@@ -45,7 +45,8 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.records import Branch, RunLog
     from dem_taichi.scene.config import scene_from_toml
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     start = time.perf_counter()
     sim = Simulation.from_checkpoint(checkpoint)
@@ -124,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.records import ProtocolResult, RunLog
     from dem_taichi.scene.config import load_scene, scene_to_toml, scene_with_overrides
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     variants: dict[str, list[str]] = {}
     for item in args.variant:

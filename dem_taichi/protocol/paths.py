@@ -54,7 +54,8 @@ from dem_taichi.protocol.progress import StageProgress, use_bars
 from dem_taichi.protocol.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.protocol.records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.protocol.servo import ServoMemory, StressServo
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 if TYPE_CHECKING:
     from dem_taichi.engine.simulation import Simulation

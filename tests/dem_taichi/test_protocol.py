@@ -42,7 +42,8 @@ def smoke_protocol_scene(**protocol):
         save_path_states=True,
     )
     settings.update(protocol)
-    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
 
     extensions = {
         "protocol": ProtocolConfig(**settings),
@@ -214,7 +215,8 @@ def test_protocol_servo_holds_targets_on_the_engine(run):
     bitwise unchanged."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.paths import ProtocolRunner
-    from dem_taichi.scene.protocol_sections import ProbingConfig, protocol_settings
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     sim = Simulation.from_checkpoint(run.files["state_A"])
     config = protocol_settings(sim.scene)
@@ -288,7 +290,8 @@ def test_dynamic_sweep_only_at_the_chosen_states(run):
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.runner import RelaxedState
-    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
 
     probing = ProbingConfig(dynamic_states="C, A_to_C_2", amplitude_min=1e-8, amplitude_max=1e-8)
     assert probing.runs_dynamic("C") and probing.runs_dynamic("A_to_C_2")
