@@ -570,6 +570,36 @@ def test_report_findings_equal_the_folder_findings(run):
     assert [p for p, _ in k0] == folder["k0_p"] and [r for _, r in k0] == folder["k0_ratio"]
 
 
+def memory_findings_equal_the_folder_findings(result) -> None:
+    """The findings of a run held in memory (its ProtocolResult's arrays, as
+    benchmarks/paired_paths.py assembles them) equal run_findings / state_findings of its
+    folder: both routes assemble them with findings_from_arrays / states_from_arrays."""
+    from dem_taichi.analysis.findings import (
+        findings_from_arrays,
+        run_findings,
+        state_findings,
+        states_from_arrays,
+    )
+    from dem_taichi.protocol.report import path_arrays, probe_arrays
+
+    rods = smoke_protocol_scene().particles
+    shape = (rods.n_spheres, rods.spacing, rods.diameter)
+    path, probes = path_arrays(result), probe_arrays(result)
+    memory = findings_from_arrays(path, probes, result.n_rods, result.stress_scale_kpa, shape)
+    folder = run_findings(result.out_dir)
+    # what the folder adds is the run's record, not a finding over its arrays
+    assert set(folder) - set(memory) == {"run", "max_i", "seconds", "workers"}
+    np.testing.assert_equal(memory, {key: folder[key] for key in memory})  # NaN equals NaN
+    assert math.isfinite(memory["lambda_star"]) and memory["iso_ratio"]
+    np.testing.assert_equal(states_from_arrays(path.states, probes), state_findings(result.out_dir))
+
+
+def test_findings_in_memory_equal_the_folder_findings(run):
+    """One assembly of the findings over arrays (issue 21): the route of a run in memory and
+    the route of its folder's files give the same findings on the smoke run."""
+    memory_findings_equal_the_folder_findings(run)
+
+
 def test_the_work_ledger_accounts_for_every_step_of_every_stage(run):
     """dem_taichi/engine/work_profile.py: the ledger's steps add up to each stage's, the stages'
     kinds of work are the ones that ran, and summary.json and the report carry the ledger."""
