@@ -52,7 +52,8 @@ def prepared_state(scene, arch, pressure):
     step limits).
     """
     from dem_taichi.protocol.paths import ProtocolRunner
-    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
 
     fast = scene.replace(
         control={"inertial_number_max": 0.05},

@@ -49,7 +49,8 @@ def packed_simulation(scene_name: str, specific_volume: float, state: str | None
 
 def bench_scene(scene_name: str, specific_volume: float, state: str | None) -> dict:
     from dem_taichi.protocol.probing import degradation_curve, linear_probe
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     sim, measures, relaxed, build_seconds = packed_simulation(scene_name, specific_volume, state)
     probing = probing_settings(sim.scene)

@@ -13,9 +13,12 @@ the scene as given), the branches from A (A→B; A→C with C→B; each radial p
 ``[protocol]``/``[probing]`` settings (the engine is the scene's: a variant may change only
 those two sections, so every variant starts from the bitwise same A). Writes, per variant: the
 wall time of its branches, the steps and the work ledger (:mod:`dem_taichi.engine.work_profile`) per
-stage, and the findings (v, p, q, fabric, E_v, E_h, E_h/E_v at each labelled state; λ*, the
-moduli exponent and E_v/p at B along A→B; K0 = σ_xx/σ_yy at C), computed by the functions of
-:mod:`dem_taichi.analysis.arrays` that the run reports use.
+stage, and the findings: those a run folder gives (λ*, the moduli exponent and E_v/p at B along
+A→B; K0 = σ_xx/σ_yy at C; fabric and E_h/E_v along the paths; the mapped window...) and, at
+each labelled state, its measures and moduli (v, p, q, fabric, E_v, E_h, E_h/E_v as
+``<key>@<label>``), assembled by :mod:`dem_taichi.analysis.findings` from the same arrays as a
+run folder's (:func:`~dem_taichi.analysis.findings.findings_from_arrays`). A finding a variant
+lacks (no A→B, no C) is null.
 
 The paired differences over seeds are tabulated by ``benchmarks/paired_paths_table.py``.
 """
@@ -45,7 +48,8 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.records import Branch, RunLog
     from dem_taichi.scene.config import scene_from_toml
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     start = time.perf_counter()
     sim = Simulation.from_checkpoint(checkpoint)
@@ -61,38 +65,20 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     return label, log, time.perf_counter() - start
 
 
-def _findings(result) -> dict:
-    from dem_taichi.analysis.arrays import (
-        compressibility_slope,
-        modulus_over_p_at,
-        power_law_exponent,
-        stiffness_ratio,
-        stress_ratio_at,
-    )
+def _findings(result, particles) -> dict:
+    """The findings of a variant's merged run (a ``ProtocolResult`` in memory): those a run
+    folder gives (:func:`dem_taichi.analysis.findings.findings_from_arrays`, over the same
+    arrays) and, for every labelled state, its measures and moduli as ``<key>@<label>``
+    (:func:`dem_taichi.analysis.findings.states_from_arrays`). ``particles``: the scene's
+    ``[particles]`` (the rod shape)."""
+    from dem_taichi.analysis.findings import findings_from_arrays, states_from_arrays
     from dem_taichi.protocol.report import path_arrays, probe_arrays
 
     path, probes = path_arrays(result), probe_arrays(result)
-    on_iso = probes.isotropic()
-    out: dict = {}
-    if path.from_a("A_to_B", "mean_stress").size > 1:
-        fit = compressibility_slope(
-            path.from_a("A_to_B", "mean_stress"), path.from_a("A_to_B", "specific_volume")
-        )
-        out["lambda_star"] = fit["lambda_star"]
-        out["modulus_exponent"] = power_law_exponent(
-            probes.mean_stress[on_iso], probes.e_oed_v[on_iso]
-        )
-        out["ev_over_p_B"] = modulus_over_p_at(probes, "B")
-    if "C" in path.states:
-        out["k0_C"] = stress_ratio_at(path, "C")
-    for label, state in result.states.items():
-        m = state.measures
-        e_v, e_h = probes.moduli_at(label)
-        for key in ("specific_volume", "mean_stress", "deviatoric_stress", "fabric_deviator"):
-            out[f"{key}@{label}"] = float(m[key])
-        out[f"e_oed_v@{label}"] = e_v
-        out[f"e_oed_h@{label}"] = e_h
-        out[f"e_ratio@{label}"] = float(stiffness_ratio(e_h, e_v))
+    shape = (particles.n_spheres, particles.spacing, particles.diameter)
+    out = findings_from_arrays(path, probes, result.n_rods, result.stress_scale_kpa, shape)
+    for label, entry in states_from_arrays(path.states, probes).items():
+        out.update({f"{key}@{label}": value for key, value in entry.items()})
     return out
 
 
@@ -124,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.records import ProtocolResult, RunLog
     from dem_taichi.scene.config import load_scene, scene_to_toml, scene_with_overrides
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     variants: dict[str, list[str]] = {}
     for item in args.variant:
@@ -186,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         result = ProtocolResult(
             out_dir=args.out.parent, scene_name=args.scene, pattern="", n_rods=sim.n_rods,
             arch="cpu", precision="f64", log=merged,
+            stress_scale_kpa=protocol_settings(scene).stress_scale_kpa,
         )  # fmt: skip
         report["variants"][name] = {
             "settings": keys,
@@ -194,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
             "steps": {k: v.steps for k, v in merged.stages.items()},
             "max_inertial_number": {k: v.max_inertial_number for k, v in merged.stages.items()},
             "work": merged.work,
-            "findings": _findings(result),
+            "findings": _findings(result, scene.particles),
         }
         print(f"[seed {args.seed}] {name}: branches {wall:.0f} s, steps "
               f"{sum(v.steps for k, v in merged.stages.items() if k != 'isotropic_to_A'):,}",

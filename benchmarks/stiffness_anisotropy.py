@@ -230,7 +230,8 @@ def dynamic_rows(label, sim, amplitudes) -> list[dict]:
     """One-sided and ± dynamic probes at the current (relaxed) state, beside the linear ones."""
     from dem_taichi.protocol.probing import dynamic_modulus
     from dem_taichi.protocol.runner import relax
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     probing, protocol = probing_settings(sim.scene), protocol_settings(sim.scene)
     # as the protocol's probes: relax the copy further to the probes' UFR first (a path state

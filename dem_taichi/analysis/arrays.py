@@ -175,10 +175,11 @@ def fabric_sampling_noise(n_rods: int) -> float:
 
 # --- the study's findings over arrays -----------------------------------------------------------
 # One implementation of each finding, written against arrays of the relaxed states and probes
-# of a run. Two readers build these arrays: dem_taichi.protocol.report.findings from a
-# ProtocolResult in memory (report.md) and dem_taichi.analysis.findings.run_findings from a run
-# folder's files (summaries, sweeps, benchmarks); both then call the functions below, so the two
-# cannot disagree.
+# of a run. Two readers build these arrays: dem_taichi.protocol.report from a ProtocolResult in
+# memory (report.md) and dem_taichi.analysis.findings from a run folder's files (summaries, sweeps,
+# benchmarks); both then call the functions below, so the two cannot disagree. The row of a run
+# folder (run_findings) is assembled from the arrays by findings.findings_from_arrays, which a run
+# in memory calls too (benchmarks/paired_paths.py).
 
 #: The isotropic-fabric check: every |β_yy − β_xx| on A and A→B within this many sampling noises.
 FABRIC_NOISE_MULTIPLE = 2.0

@@ -1,9 +1,11 @@
 """The study's findings read from a finished protocol run, and their replica statistics.
 
 numpy/scipy/xarray only (no Taichi): reads ``summary.json``, ``relaxed_states.nc`` and
-``probes.nc`` of a run directory (:func:`dem_taichi.protocol.runner.run_protocol`). Used by
-``benchmarks/validation_summary.py`` (runs side by side) and by the sweeps
-(:mod:`dem_taichi.sweep.results`: mean ± 95 % interval over replicas).
+``probes.nc`` of a run directory (:func:`dem_taichi.protocol.runner.run_protocol`) into arrays
+(:func:`path_arrays`, :func:`probe_arrays`) and assembles the findings from them
+(:func:`findings_from_arrays`, :func:`states_from_arrays`), the same way for a run held in memory
+(``benchmarks/paired_paths.py``). Used by the benchmarks' summaries (runs side by side) and by
+the sweeps (:mod:`dem_taichi.sweep.results`: mean ± 95 % interval over replicas).
 
 Findings (docs/science/dem-model.md §1, the study): fabric isotropic along A→B within the sampling
 noise sqrt(0.5/N) and E_oed,h ≈ E_oed,v there; along K0 the rods lie down (β_yy − β_xx falls) and
@@ -24,7 +26,9 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -58,7 +62,9 @@ __all__ = [
     "path_arrays",
     "probe_arrays",
     "run_findings",
+    "findings_from_arrays",
     "state_findings",
+    "states_from_arrays",
     "mean_interval",
     "mapped_window_findings",
     "stress_scale_interval",
@@ -121,38 +127,75 @@ def run_findings(folder: str | Path) -> dict:
     """The findings of one run directory as a flat dict (one row of the validation summary).
 
     Keys: ``run`` (the folder's name), ``max_i`` (largest inertial number on the paths from A),
-    ``n_rods``, ``noise`` (sqrt(0.5/N)), ``iso_fabric_max`` (max |β_yy − β_xx| on A and A→B),
-    ``iso_fabric_within_noise`` (every one within 2 noises),
-    ``iso_ratio`` / ``k0_ratio`` (E_h/E_v of the probes along A→B / along K0 by rising p),
-    ``k0_fabric``, ``k0_p``, ``lambda_star`` and ``r2`` (ln v – ln p fit over A and A→B),
-    ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``, ``fabric_C``, ``k0_C`` (σ_xx/σ_yy at C),
-    ``modulus_exponent`` (n of E_v ∝ p^n on A and A→B), ``ev_over_p_B``, ``seconds``,
-    ``workers``; ``anisotropy_C`` when the folder holds ``anisotropy.json``; and the findings on
-    the mapped stress window (:func:`mapped_window_findings`). Each finding is computed by the
-    functions of :mod:`dem_taichi.analysis.arrays` that the run's report uses too.
+    the findings over the run's arrays (:func:`findings_from_arrays`: ``n_rods``, ``noise``,
+    ``iso_fabric_max``, ``iso_fabric_within_noise``, ``iso_ratio``, ``k0_fabric``, ``k0_p``,
+    ``k0_ratio``, ``lambda_star``, ``r2``, ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``,
+    ``fabric_C``, ``k0_C``, ``modulus_exponent``, ``ev_over_p_B`` and those on the mapped stress
+    window), ``seconds``, ``workers``; ``anisotropy_C`` when the folder holds
+    ``anisotropy.json``. The files give the arrays (:func:`path_arrays`, :func:`probe_arrays`),
+    the scene's stress scale and the rod shape; what is computed from them is
+    :func:`findings_from_arrays`, which a run in memory calls too
+    (``benchmarks/paired_paths.py``).
     """
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
     relaxed = open_history(folder / "relaxed_states.nc")
-    path = path_arrays(summary, relaxed)
-    probes = probe_arrays(_probes(folder))
-    n = int(summary["n_rods"])
-    iso_p = path.from_a("A_to_B", "mean_stress")
-    iso_v = path.from_a("A_to_B", "specific_volume")
-    fit = compressibility_slope(iso_p, iso_v)
-    fabric = fabric_isotropy(path.from_a("A_to_B", "fabric_deviator"), n)
-    ratio = stiffness_ratio(probes.e_oed_h, probes.e_oed_v)
-    on_iso = probes.isotropic()
-    k0 = probes.along_k0()
     loading = [
         st["max_inertial_number"]
         for name, st in summary["stages"].items()
         if name != "isotropic_to_A"
     ]
+    row = {"run": folder.name, "max_i": max(loading) if loading else _NAN}
+    row |= findings_from_arrays(
+        path_arrays(summary, relaxed),
+        probe_arrays(_probes(folder)),
+        int(summary["n_rods"]),
+        _scene_scale(summary, relaxed.attrs),
+        _rod_shape(relaxed.attrs),
+    )
+    row |= {"seconds": summary["total_seconds"], "workers": summary.get("workers", 1)}
+    aniso = folder / "anisotropy.json"
+    if aniso.exists():
+        rows = {r["state"]: r for r in json.loads(aniso.read_text())}
+        row["anisotropy_C"] = rows.get("C")
+    return row
+
+
+def findings_from_arrays(
+    path: PathArrays,
+    probes: ProbeArrays,
+    n_rods: int,
+    stress_scale_kpa: float = 1.0,
+    rod_shape: tuple[int, float, float] | None = None,
+) -> dict:
+    """The study's findings over a run's arrays, as a flat dict: what :func:`run_findings`
+    computes once it has read a run folder, for a run read from its files or held in memory
+    (:func:`dem_taichi.protocol.report.path_arrays` and ``probe_arrays`` of a
+    :class:`~dem_taichi.protocol.records.ProtocolResult`).
+
+    ``path``/``probes``: the relaxed states and the probes; ``n_rods`` (the fabric's sampling
+    noise); ``stress_scale_kpa``: the scene's ``[protocol] stress_scale_kpa``, used on the
+    mapped window when the probes do not measure a scale; ``rod_shape``: (n_spheres, spacing,
+    diameter) of the rods, for ``N_rectangle`` (NaN without it). Keys: ``n_rods``, ``noise``
+    (sqrt(0.5/N)), ``iso_fabric_max`` (max |β_yy − β_xx| on A and A→B),
+    ``iso_fabric_within_noise`` (every one within 2 noises), ``iso_ratio`` / ``k0_ratio``
+    (E_h/E_v of the probes along A→B / along K0 by rising p), ``k0_fabric``, ``k0_p``,
+    ``lambda_star`` and ``r2`` (ln v – ln p fit over A and A→B), ``p_A``, ``v_A``, ``v_B``,
+    ``v_C``, ``fabric_A``, ``fabric_C``, ``k0_C`` (σ_xx/σ_yy at C), ``modulus_exponent`` (n of
+    E_v ∝ p^n on A and A→B), ``ev_over_p_B``, and the findings on the mapped stress window
+    (:func:`mapped_window_findings`). NaN (or an empty list) for what a run lacks. Each finding
+    is computed by the functions of :mod:`dem_taichi.analysis.arrays` that the run's report
+    uses too.
+    """
+    iso_p = path.from_a("A_to_B", "mean_stress")
+    iso_v = path.from_a("A_to_B", "specific_volume")
+    fit = compressibility_slope(iso_p, iso_v)
+    fabric = fabric_isotropy(path.from_a("A_to_B", "fabric_deviator"), n_rods)
+    ratio = stiffness_ratio(probes.e_oed_h, probes.e_oed_v)
+    on_iso = probes.isotropic()
+    k0 = probes.along_k0()
     row = {
-        "run": folder.name,
-        "max_i": max(loading) if loading else _NAN,
-        "n_rods": n,
+        "n_rods": n_rods,
         "noise": fabric.noise,
         "iso_fabric_max": fabric.max_abs,
         "iso_fabric_within_noise": fabric.within_noise,
@@ -172,15 +215,15 @@ def run_findings(folder: str | Path) -> dict:
         # moduli ∝ p^n along A→B (the study: n ≈ 0.8)
         "modulus_exponent": power_law_exponent(probes.mean_stress[on_iso], probes.e_oed_v[on_iso]),
         "ev_over_p_B": modulus_over_p_at(probes, "B"),
-        "seconds": summary["total_seconds"],
-        "workers": summary.get("workers", 1),
     }
-    row.update(mapped_window_findings(summary, relaxed.attrs, probes, iso_p, iso_v))
-    aniso = folder / "anisotropy.json"
-    if aniso.exists():
-        rows = {r["state"]: r for r in json.loads(aniso.read_text())}
-        row["anisotropy_C"] = rows.get("C")
-    return row
+    window = _window_findings(path.states, stress_scale_kpa, rod_shape, probes, iso_p, iso_v)
+    return row | window
+
+
+def _scene_scale(summary: dict, attrs) -> float:
+    """The scene's ``[protocol] stress_scale_kpa`` as a run folder states it (``summary.json``,
+    else the relaxed states' attribute; 1 when neither has it)."""
+    return float(summary.get("stress_scale_kpa", attrs.get("stress_scale_kpa", 1.0)))
 
 
 def _rod_shape(attrs) -> tuple[int, float, float] | None:
@@ -219,9 +262,21 @@ def mapped_window_findings(summary: dict, attrs, probes: ProbeArrays | None, iso
     - ``local_lambda_p_kpa``, ``local_lambda``: the local −d ln v/d ln p between consecutive
       states of A and A→B at their mid-points √(p_k p_k+1) in kPa (lists).
     """
-    states = summary.get("states", {})
-    scene_scale = float(summary.get("stress_scale_kpa", attrs.get("stress_scale_kpa", 1.0)))
     probes = probes if probes is not None else ProbeArrays.empty()
+    scale, shape = _scene_scale(summary, attrs), _rod_shape(attrs)
+    return _window_findings(summary.get("states", {}), scale, shape, probes, iso_p, iso_v)
+
+
+def _window_findings(
+    states: Mapping[str, Mapping[str, Any]],
+    scene_scale: float,
+    shape: tuple[int, float, float] | None,
+    probes: ProbeArrays,
+    iso_p,
+    iso_v,
+) -> dict:
+    """:func:`mapped_window_findings` from the labelled states' measures, the scene's stress
+    scale (kPa per DEM unit) and the rod shape (n_spheres, spacing, diameter; None: unknown)."""
     on_iso = probes.isotropic()
     p, e_v, e_h = probes.mean_stress[on_iso], probes.e_oed_v[on_iso], probes.e_oed_h[on_iso]
     measured = stress_scale_from_stiffness(p, e_v)
@@ -232,7 +287,6 @@ def mapped_window_findings(summary: dict, attrs, probes: ProbeArrays | None, iso
     exp_v = moduli_exponent(p * scale, e_v, STUDY_WINDOW_KPA)
     exp_h = moduli_exponent(p * scale, e_h, STUDY_WINDOW_KPA)
     n_disc = specific_volume_at(iso_p_kpa, iso_v, STUDY_REFERENCE_KPA)
-    shape = _rod_shape(attrs)
     n_rect = specific_volume_rectangle(n_disc, *shape) if shape is not None else _NAN
     ev_b, eh_b = probes.moduli_at("B")
     ev_bp, eh_bp = probes.moduli_at("B'")
@@ -268,9 +322,17 @@ def state_findings(folder: str | Path) -> dict[str, dict[str, float]]:
     ratio ``e_ratio`` = E_oed,h/E_oed,v (NaN where the state was not probed)."""
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
-    probes = probe_arrays(_probes(folder))
+    return states_from_arrays(summary["states"], probe_arrays(_probes(folder)))
+
+
+def states_from_arrays(
+    states: Mapping[str, Mapping[str, Any]], probes: ProbeArrays
+) -> dict[str, dict[str, float]]:
+    """:func:`state_findings` from the labelled states' measures (label → history name →
+    value, in the order reached) and the run's probes, for a run read from its files or held
+    in memory."""
     out: dict[str, dict[str, float]] = {}
-    for label, measures in summary["states"].items():
+    for label, measures in states.items():
         entry = {k: float(measures.get(k, _NAN)) for k in STATE_MEASURES}
         e_v, e_h = probes.moduli_at(label)
         entry.update(e_oed_v=e_v, e_oed_h=e_h, e_ratio=float(stiffness_ratio(e_h, e_v)))

@@ -44,7 +44,8 @@ from dem_taichi.protocol.resume import (
     save_branch,
 )
 from dem_taichi.protocol.worker_lifetime import die_with_parent
-from dem_taichi.scene.protocol_sections import ProtocolConfig, probing_settings, protocol_settings
+from dem_taichi.scene.probing_sections import probing_settings
+from dem_taichi.scene.protocol_sections import ProtocolConfig, protocol_settings
 
 __all__ = [
     "Branch",

@@ -118,7 +118,8 @@ def _reference_time_step() -> float:
 
 
 def _protocol_steps(scene) -> float:
-    from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+    from dem_taichi.scene.probing_sections import probing_settings
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     c = protocol_settings(scene)
     probing = probing_settings(scene)

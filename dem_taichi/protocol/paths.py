@@ -8,15 +8,10 @@ Stages (stage labels of :data:`dem_taichi.io.schema.STAGE_CODES`):
    ``gas_strain_rate``, then aged at fixed cell (its rms speed optionally rescaled to
    ``aggregation_speed`` at every check) for ``aggregation_time``, or until the coordination
    number Z reaches ``aggregation_coordination`` (at most ``aggregation_max_time``).
-1. ``isotropic_to_A`` — from the gas, isotropic strain-controlled compression in increments of
-   per-axis logarithmic strain h, each followed by a relaxation at fixed cell. A relaxed state is
-   a candidate for the fluid–solid transition when p > ``pressure_tolerance`` and
-   Z_m ≥ ``coordination_min``. On a candidate found with h > ``min_compression_increment`` the
-   sample is restored to the previous relaxed state and h is halved (bisection of the
-   transition); at the smallest h a candidate becomes **A** when p stays above the tolerance over
-   the next ``confirm_increments`` relaxed increments (then the sample is restored to the
-   candidate). The rule is :func:`dem_taichi.analysis.arrays.detect_transition`, which is re-applied
-   to the whole relaxed sequence and recorded (with p, Z_m and the Z_m jump) in the results.
+1. ``isotropic_to_A`` — from the gas, isotropic strain-controlled compression in relaxed
+   increments, bisected, until the fluid–solid transition (state **A**): p stays above
+   ``pressure_tolerance`` with Z_m ≥ ``coordination_min``
+   (:mod:`dem_taichi.protocol.transition`, which states the rule).
 2. ``A_to_B`` — isotropic stress path, σ_xx = σ_yy = p_k, p_k log-spaced from p_A to
    ``target_mean_stress`` (state **B**).
 3. ``A_to_C`` — K0 (oedometric) path from A: L_x never changes (ε_xx = ε_xx(A) exactly),
@@ -45,16 +40,18 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from dem_taichi.analysis.arrays import Transition, detect_transition
+from dem_taichi.analysis.arrays import Transition
 from dem_taichi.engine.measures import Measures
 from dem_taichi.engine.work_profile import doing
 from dem_taichi.io.vtk_snapshots import simulation_snapshot
 from dem_taichi.protocol.aggregation import aggregate
 from dem_taichi.protocol.progress import StageProgress, use_bars
-from dem_taichi.protocol.quasistatic import apply_strain, relax, strain_rate_cap
+from dem_taichi.protocol.quasistatic import relax
 from dem_taichi.protocol.records import ProtocolError, RelaxedState, RunLog, StageRecord
 from dem_taichi.protocol.servo import ServoMemory, StressServo
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.protocol.transition import compress_to_transition
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 if TYPE_CHECKING:
     from dem_taichi.engine.simulation import Simulation
@@ -276,168 +273,9 @@ class ProtocolRunner:
     # -- stage 1 ----------------------------------------------------------------------------
     def compress_to_transition(self) -> RelaxedState:
         """Isotropic strain-controlled compression in relaxed increments until state A (after
-        the aggregation stage when ``[protocol] aggregation`` asks for one)."""
-        c = self.config
-        sim = self.sim
-        if c.aggregates and self.aggregation_details is None:
-            self.aggregate()
-        stage = "isotropic_to_A"
-        t0 = time.perf_counter()
-        record = self._record(stage)
-        h = c.compression_increment
-        tol = c.transition_pressure_tolerance(sim.scene)
-
-        def gas(measures: Measures, steps: int) -> bool:
-            # a state whose (dynamic) pressure is far below the tolerance after a few checks is
-            # clearly not loaded: do not spend the whole relaxation budget on a gas
-            return steps >= 4 * c.relax_check_steps and measures["mean_stress"] < 0.1 * tol
-
-        measures, ok = self._relax(stage, gas)
-        previous = (sim.get_state(), measures)
-        candidate: tuple[dict, Measures] | None = None
-        confirmed = 0
-        sequence = self.compression_sequence
-        progress = self._begin_stage(stage, None)  # the number of increments is not known
-        for increment in range(c.max_compression_increments):
-            p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
-            rate_p = p_now if p_now > tol else 0.0
-            with doing("search" if candidate is None else "confirm"):
-                self._load_compression(stage, h, rate_p, tol)
-                measures, ok = self._relax(stage, gas)
-            entry = {
-                "increment": increment,
-                "h": h,
-                "mean_stress": measures["mean_stress"],
-                "mechanical_coordination_number": measures["mechanical_coordination_number"],
-                "specific_volume": measures["specific_volume"],
-                "relaxed": ok,
-                "step": measures["step"],
-            }
-            sequence.append(entry)
-            loaded = ok and measures["mean_stress"] > tol
-            is_candidate = loaded and measures["mechanical_coordination_number"] >= (
-                c.coordination_min
-            )
-            progress.step(
-                increment,
-                f"[{stage}] inc {increment} h={h:.4g} v={measures['specific_volume']:.4f} "
-                f"p={measures['mean_stress']:.4g} "
-                f"Zm={measures['mechanical_coordination_number']:.3f} relaxed={ok}",
-            )
-            if candidate is None:
-                resolved = measures["mean_stress"] <= c.transition_pressure_factor * tol
-                if is_candidate and not resolved and h > c.min_compression_increment * (1 + 1e-12):
-                    sim.set_state(previous[0])
-                    h = max(0.5 * h, c.min_compression_increment)
-                    entry["restored"] = True
-                    continue
-                if is_candidate:
-                    candidate = (sim.get_state(), measures)
-                    confirmed = 0
-                    entry["candidate"] = True
-                    if c.confirm_increments == 0:
-                        break
-                else:
-                    previous = (sim.get_state(), measures)
-                continue
-            if loaded:
-                confirmed += 1
-                if confirmed >= c.confirm_increments:
-                    break
-            else:  # the load relaxed away: not a solid yet
-                entry["candidate_rejected"] = True
-                candidate = None
-                previous = (sim.get_state(), measures)
-        else:
-            raise ProtocolError(
-                f"no fluid–solid transition after {c.max_compression_increments} compression "
-                f"increments (last relaxed p = {measures['mean_stress']:.4g}, Z_m = "
-                f"{measures['mechanical_coordination_number']:.3g}); raise [protocol] "
-                "max_compression_increments or lower "
-                + (
-                    "pressure_tolerance_reduced"
-                    if c.pressure_tolerance_reduced is not None
-                    else "pressure_tolerance"
-                )
-                + " / coordination_min"
-            )
-        assert candidate is not None
-        sim.set_state(candidate[0])
-        a_measures = candidate[1]
-        # the recorded rule, applied to the relaxed sequence up to the confirmation
-        relaxed_seq = [e for e in sequence if e["relaxed"] and not e.get("restored")]
-        pressure = np.array([e["mean_stress"] for e in relaxed_seq])
-        coordination = np.array([e["mechanical_coordination_number"] for e in relaxed_seq])
-        transition = detect_transition(pressure, coordination, tol, c.coordination_min)
-        self.log.transition = transition
-        cand_index = next(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
-        last_cand = max(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
-        self.log.transition_details = {
-            "rule": transition.rule
-            + f"; confirmed over {c.confirm_increments} further relaxed increments; "
-            "increments bisected (sample restored to the previous relaxed state, increment "
-            f"halved) from {c.compression_increment:g} until p <= "
-            f"{c.transition_pressure_factor:g} x tolerance or the increment reaches "
-            f"{c.min_compression_increment:g}",
-            "pressure_tolerance": tol,
-            "coordination_min": c.coordination_min,
-            "detector_index": transition.index,
-            "protocol_index": last_cand,
-            "detector_agrees": bool(transition.index == last_cand),
-            "first_candidate_index": cand_index,
-            "mean_stress": a_measures["mean_stress"],
-            "mechanical_coordination_number": a_measures["mechanical_coordination_number"],
-            "coordination_jump": float(
-                a_measures["mechanical_coordination_number"]
-                - (relaxed_seq[last_cand - 1]["mechanical_coordination_number"] if last_cand else 0)
-            ),
-            "mean_stress_before": float(relaxed_seq[last_cand - 1]["mean_stress"])
-            if last_cand
-            else float("nan"),
-            "specific_volume": a_measures["specific_volume"],
-            "step": a_measures["step"],
-            "n_increments": len(sequence),
-            "sequence": sequence,
-        }
-        if c.pressure_tolerance_reduced is not None:
-            self.log.transition_details["pressure_tolerance_reduced"] = c.pressure_tolerance_reduced
-        if self.aggregation_details is not None:
-            self.log.transition_details["aggregation"] = self.aggregation_details
-        sim.set_strain_reference()
-        a_measures = sim.measure()
-        if self.history is not None:
-            self.history.append(a_measures)
-        state = self._path_state("A", stage, len(sequence), (math.nan, math.nan), a_measures, True)
-        self.state_A = sim.get_state()
-        record.seconds += time.perf_counter() - t0
-        self._end_stage()
-        self._say(
-            f"[A] p={a_measures['mean_stress']:.4g} v={a_measures['specific_volume']:.4f} "
-            f"Zm={a_measures['mechanical_coordination_number']:.3f}"
-        )
-        self._maybe_probe(state, last=False)
-        return state
-
-    def _load_compression(self, stage: str, h: float, p_now: float, tol: float) -> None:
-        """One compression increment h; ``tol`` the A criterion's pressure tolerance (below
-        it the gas rate applies and I is not recorded)."""
-        c = self.config
-        sim = self.sim
-        rate = c.gas_strain_rate
-        if p_now > 0:
-            rate = min(
-                rate,
-                strain_rate_cap(sim, p_now, c.pressure_tolerance, c.inertial_number_safety),
-            )
-        every = sim.scene.output.every
-        before = sim.step
-        measures = apply_strain(sim, (h, h), stage, rate, c.load_steps_min, self.history, every)
-        self._record(stage).steps += sim.step - before
-        if measures["mean_stress"] <= tol:
-            # gas: I = ε̇ d sqrt(ρ/p) is undefined/meaningless; the gas rate cap applies instead
-            measures = measures.copy()
-            measures["inertial_number"] = float("nan")
-        self._record(stage).note(measures, False, c.unbalanced_force_max)
+        the aggregation stage when ``[protocol] aggregation`` asks for one)
+        (:func:`dem_taichi.protocol.transition.compress_to_transition`)."""
+        return compress_to_transition(self)
 
     # -- servo ------------------------------------------------------------------------------
     def servo(

@@ -40,7 +40,8 @@ from dem_taichi.analysis.arrays import Plateau, elastic_plateau
 from dem_taichi.engine.measures import Measures
 from dem_taichi.protocol.quasistatic import apply_strain, relax, strain_rate_cap
 from dem_taichi.protocol.records import RunLog
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 if TYPE_CHECKING:
     from dem_taichi.engine.simulation import Simulation

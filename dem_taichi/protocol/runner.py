@@ -85,7 +85,8 @@ from dem_taichi.protocol.resume import (
 from dem_taichi.protocol.servo import SecantStiffness
 from dem_taichi.scene.config import Scene, load_scene, scene_to_toml
 from dem_taichi.scene.options import add_preset_option, scene_from_options
-from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+from dem_taichi.scene.probing_sections import probing_settings
+from dem_taichi.scene.protocol_sections import protocol_settings
 
 # the names of the protocol before it was split into rooms (issue 9) stay importable from here
 __all__ = [

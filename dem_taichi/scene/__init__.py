@@ -4,9 +4,9 @@ gas it describes (numpy; no Taichi, no engine).
 :class:`~dem_taichi.scene.config.Scene` and :func:`~dem_taichi.scene.config.load_scene`
 (:mod:`~dem_taichi.scene.config`), the section base (:mod:`~dem_taichi.scene.base`), the core
 sections (:mod:`~dem_taichi.scene.sections`), the ``[protocol]`` and ``[probing]`` sections
-(:mod:`~dem_taichi.scene.protocol_sections`), presets and command-line options
-(:mod:`~dem_taichi.scene.presets`, :mod:`~dem_taichi.scene.options`), and the rod geometry and
-starting gas a scene resolves to (:mod:`~dem_taichi.scene.geometry`,
+(:mod:`~dem_taichi.scene.protocol_sections`, :mod:`~dem_taichi.scene.probing_sections`), presets
+and command-line options (:mod:`~dem_taichi.scene.presets`, :mod:`~dem_taichi.scene.options`),
+and the rod geometry and starting gas a scene resolves to (:mod:`~dem_taichi.scene.geometry`,
 :mod:`~dem_taichi.scene.gas_placement`). Imports only :mod:`dem_taichi.physics` below it.
 """
 

@@ -27,11 +27,11 @@ Sections (units: dimensionless DEM units, d = disc diameter, m = disc mass):
                     scenes and checkpoints still load
 ``[output]``        every, checkpoint_every
 
-Extension sections: ``[protocol]`` and ``[probing]`` (:mod:`dem_taichi.scene.protocol_sections`) are
-known to every loader; other code may add more with ``register_section(name, cls)``. A loaded
-extension is found in ``scene.extensions[name]``. The core sections' dataclasses are in
-:mod:`dem_taichi.scene.sections` (re-exported here); the section base (:class:`SceneSection`,
-:class:`SceneError`) lives in :mod:`dem_taichi.scene.base`, below both.
+Extension sections: ``[protocol]`` (:mod:`dem_taichi.scene.protocol_sections`) and ``[probing]``
+(:mod:`dem_taichi.scene.probing_sections`) are known to every loader; other code may add more with
+``register_section(name, cls)``. A loaded extension is found in ``scene.extensions[name]``. The core
+sections' dataclasses are in :mod:`dem_taichi.scene.sections` (re-exported here); the section base
+(:class:`SceneSection`, :class:`SceneError`) lives in :mod:`dem_taichi.scene.base`, below both.
 
 Symbols: k_n normal stiffness, γ_n normal damping, e_n normal restitution, t_c contact duration
 (two discs of mass m): t_c = π / sqrt(2 k_n/m − (γ_n/m)²), e_n = exp(−γ_n t_c / m).
@@ -67,7 +67,8 @@ from typing import Any
 from dem_taichi.scene import sections as scene_sections
 from dem_taichi.scene.base import SceneError, SceneSection, read_text_file
 from dem_taichi.scene.presets import fill_preset, set_keys
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 from dem_taichi.scene.sections import (
     Bonds,
     Contact,

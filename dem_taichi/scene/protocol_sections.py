@@ -1,12 +1,13 @@
-"""Scene sections of the virtual experiments: ``[protocol]`` and ``[probing]``
+"""Scene section of the virtual experiments' loading paths: ``[protocol]``
 (docs/science/dem-model.md §1.6).
 
-Both are frozen dataclasses validated by :class:`dem_taichi.scene.base.SceneSection` (type, range,
+A frozen dataclass validated by :class:`dem_taichi.scene.base.SceneSection` (type, range,
 choices; the message names the key and what is allowed); the scene loader
-(:mod:`dem_taichi.scene.config`) knows them, so a scene carrying them loads from anywhere. The
-loaded instances are ``scene.extensions["protocol"]`` and ``scene.extensions["probing"]``;
-:func:`protocol_settings` / :func:`probing_settings` return them, or the defaults when a scene
-has no such section.
+(:mod:`dem_taichi.scene.config`) knows it, so a scene carrying it loads from anywhere. The loaded
+instance is ``scene.extensions["protocol"]``; :func:`protocol_settings` returns it, or the
+defaults when a scene has no such section. The ``[probing]`` section is in
+:mod:`dem_taichi.scene.probing_sections`; its names (:class:`ProbingConfig`,
+:func:`probing_settings`) are also importable from here, where they were defined up to issue 21.
 
 Units: DEM units (d = 1, disc mass = 1); stresses in force/length, compression positive; strains
 logarithmic, compression positive. Every field's unit and a one-line description are in its
@@ -23,19 +24,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from dem_taichi.scene.aggregation_keys import AGGREGATION_KEYS, check_aggregation_keys
 from dem_taichi.scene.base import SceneError, SceneSection
 from dem_taichi.scene.base import field_choices as _choices
 from dem_taichi.scene.base import field_doc as _doc
 from dem_taichi.scene.base import field_list as _list
 from dem_taichi.scene.base import field_range as _range
 
-__all__ = [
-    "ProtocolConfig",
-    "ProbingConfig",
-    "protocol_settings",
-    "probing_settings",
-    "parse_number_list",
-]
+# the [probing] section's names, defined here up to issue 21: every import of them keeps working
+from dem_taichi.scene.probing_sections import ProbingConfig as ProbingConfig
+from dem_taichi.scene.probing_sections import probing_settings as probing_settings
+
+__all__ = ["ProtocolConfig", "protocol_settings", "parse_number_list"]
 
 
 def parse_number_list(text: str, key: str) -> tuple[float, ...]:
@@ -142,55 +142,14 @@ class ProtocolConfig(SceneSection):
       stiffness_anisotropy.py``). Needs ``save_states``.
     - ``load_steps_min`` [200]: fewest steps over which a strain increment is applied.
 
-    Preparation of the gas before the compression to A (issue 19): an attractive (clay-like)
-    gas left to aggregate before it is compressed forms clusters that jam much looser than the
-    gas compressed directly; the loose, attraction-stabilised structure is what collapses inside
-    the stress window (λ* ≈ 0.25). The stage "aggregation"
-    (:meth:`dem_taichi.protocol.paths.ProtocolRunner.aggregate`) runs before "isotropic_to_A" when
-    ``aggregation`` is "time" or "coordination"; every key below is unset by default, so a scene
-    without them runs (and writes its TOML and hash) as before.
+    Preparation of the gas before the compression to A (issue 19): the stage "aggregation" runs
+    before "isotropic_to_A" when ``aggregation`` is "time" or "coordination". Its keys
+    (``aggregation``, ``aggregation_time``, ``aggregation_coordination``,
+    ``aggregation_max_time``, ``aggregation_area_fraction``, ``aggregation_speed``,
+    ``aggregation_thermostat``, ``aggregation_thermostat_time``) are unset by default, so a scene
+    without them runs (and writes its TOML and hash) as before; what each means, their metadata
+    and their checks are in :mod:`dem_taichi.scene.aggregation_keys`.
 
-    - ``aggregation`` [unset = "none"]: "none" — no stage; "time" — age the gas for
-      ``aggregation_time``; "coordination" — age it until the mean coordination number
-      Z = 2 n_contacts / n_rods (contacts per rod, the history's ``coordination_number``)
-      reaches ``aggregation_coordination``, or stop at ``aggregation_max_time`` with a one-line
-      note (not an error). Z is the criterion because the engine measures it at every check for
-      free (the contact count is a by-product of the force loop); a mean cluster size would need
-      a connected-components pass over the contact graph at every check.
-    - ``aggregation_time`` [unset; needed by "time"]: ageing time at fixed cell (DEM time units,
-      d = m = 1; steps = ceil(time / Δt)).
-    - ``aggregation_coordination`` [unset; needed by "coordination"]: the Z that ends the
-      ageing (contacts per rod; checked every ``relax_check_steps`` steps).
-    - ``aggregation_max_time`` [unset; needed by "coordination"]: the cap of the ageing time
-      (DEM time units).
-    - ``aggregation_area_fraction`` [unset = the scene's [particles] initial_area_fraction, no
-      compression]: the gas is first brought to this area fraction φ (solid area / cell area)
-      by an isotropic strain-controlled compression at ``gas_strain_rate`` (over at least
-      ``load_steps_min`` steps), then aged at that fixed cell. Allowed
-      [initial_area_fraction, 1): a denser gas collides (and sticks) more often.
-    - ``aggregation_speed`` [unset = free cooling]: the rods' kinetic temperature during the
-      ageing. Unset: none is imposed, the gas cools freely under the scene's damping (inelastic
-      contacts, local damping, the attraction wells). Set: the rms velocity component of the
-      bodies is brought to this value at the start of the ageing and after every check (every
-      ``relax_check_steps`` steps), by ``aggregation_thermostat``; a speed far above
-      sqrt(F_max g_max / m) breaks the contacts it forms (DEM velocity units).
-    - ``aggregation_thermostat`` [unset = "resample"; only with ``aggregation_speed``]: how.
-      "resample" (an Andersen thermostat at every check): every body's velocity components
-      are drawn afresh from N(0, speed²) and its angular velocity from N(0, speed² M/I)
-      (equipartition), the mean velocity removed; the draws are seeded by the scene's seed and
-      the step, so a run is deterministic and resumes bit for bit. "rescale": every velocity
-      and angular velocity is multiplied by speed/rms, the factor of the whole gas. Rescaling
-      by one factor pumps energy into the modes that lose none between checks (the "flying
-      ice cube" of velocity rescaling, Harvey, Tan & Cheatham, J. Comput. Chem. 19 (1998) 726,
-      doi:10.1002/(SICI)1096-987X(199805)19:7<726::AID-JCC4>3.0.CO;2-S): measured on the
-      default scene with F_max = 300 and rolling resistance, one free-spinning rod went from
-      ω = 2 to 50 in 20 checks and the run stopped on an overlap (4 of 12 runs with it
-      stopped on a blow-up: ``benchmarks/results/study_clay_agitated.md``). Kept to reproduce
-      the runs made with it. "langevin": a partial refresh at every check (the
-      Ornstein–Uhlenbeck update over the check interval Δt), v ← a v + sqrt(1 − a²) ξ with
-      a = exp(−Δt/τ), τ = ``aggregation_thermostat_time`` (needed by it, refused otherwise): the
-      temperature is kept on average, each velocity and each cluster's collective motion lasts
-      ~τ (τ → 0 is "resample"); :func:`dem_taichi.protocol.quasistatic.refresh_speed`.
     - ``pressure_tolerance_reduced`` [unset = use ``pressure_tolerance``]: the A criterion's
       tolerance in units of the attraction, P* = p d / F_max (F_max the larger of [long_range]
       f_max_edge and f_max_inner, d the disc diameter): the tolerance is then P* F_max / d, so
@@ -480,128 +439,28 @@ class ProtocolConfig(SceneSection):
             "-",
         ),
     )
-    aggregation: str | None = field(
-        default=None,
-        metadata={
-            **_choices(
-                "none",
-                "time",
-                "coordination",
-                doc=(
-                    "ageing of the gas before the compression to A: 'none' (unset), 'time',"
-                    " or until a mean coordination ('coordination')"
-                ),
-            ),
-            "optional": True,
-        },
-    )
+    # the aggregation stage's keys (issue 19): metadata and checks in scene/aggregation_keys.py
+    aggregation: str | None = field(default=None, metadata=AGGREGATION_KEYS["aggregation"])
     aggregation_time: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                None,
-                lo_open=True,
-                doc="ageing time at fixed cell (aggregation = 'time')",
-                unit="time",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_time"]
     )
     aggregation_coordination: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                None,
-                lo_open=True,
-                doc=(
-                    "mean coordination Z = 2 n_contacts / n_rods that ends the ageing "
-                    "(aggregation = 'coordination')"
-                ),
-                unit="1",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_coordination"]
     )
     aggregation_max_time: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                None,
-                lo_open=True,
-                doc="cap of the ageing time (aggregation = 'coordination')",
-                unit="time",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_max_time"]
     )
     aggregation_area_fraction: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                1.0,
-                lo_open=True,
-                hi_open=True,
-                doc=(
-                    "area fraction φ the gas is compressed to before the ageing (unset: the"
-                    " initial one, no compression)"
-                ),
-                unit="1",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_area_fraction"]
     )
     aggregation_speed: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                None,
-                lo_open=True,
-                doc=(
-                    "rms velocity component the rods are kept at during the ageing, by "
-                    "aggregation_thermostat (unset: free cooling)"
-                ),
-                unit="length/time",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_speed"]
     )
     aggregation_thermostat: str | None = field(
-        default=None,
-        metadata={
-            **_choices(
-                "resample",
-                "rescale",
-                "langevin",
-                doc=(
-                    "how aggregation_speed is imposed: 'resample' (unset; Andersen: fresh"
-                    " Maxwell velocities at every check), 'rescale' (one factor for the"
-                    " whole gas) or 'langevin' (a partial refresh at every check: the"
-                    " velocities keep their memory over aggregation_thermostat_time)"
-                ),
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_thermostat"]
     )
     aggregation_thermostat_time: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                None,
-                lo_open=True,
-                doc=(
-                    "correlation time τ of the 'langevin' thermostat's velocities (needed by"
-                    " it, refused otherwise)"
-                ),
-                unit="time",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=AGGREGATION_KEYS["aggregation_thermostat_time"]
     )
     pressure_tolerance_reduced: float | None = field(
         default=None,
@@ -618,7 +477,7 @@ class ProtocolConfig(SceneSection):
     )
 
     def check(self) -> None:
-        self._check_aggregation()
+        check_aggregation_keys({key: getattr(self, key) for key in AGGREGATION_KEYS})
         if self.min_compression_increment > self.compression_increment:
             raise SceneError(
                 f"[protocol] min_compression_increment = {self.min_compression_increment} > "
@@ -637,52 +496,6 @@ class ProtocolConfig(SceneSection):
         if self.run_unloading and not self.run_k0:
             raise SceneError(
                 "[protocol] run_unloading = true needs run_k0 = true (C→B starts at C)"
-            )
-
-    def _check_aggregation(self) -> None:
-        """The aggregation keys fit the criterion: each one needed is given, none is stray."""
-        mode = self.aggregation or "none"
-        needed = {
-            "none": (),
-            "time": ("aggregation_time",),
-            "coordination": ("aggregation_coordination", "aggregation_max_time"),
-        }[mode]
-        for key in needed:
-            if getattr(self, key) is None:
-                raise SceneError(f"[protocol] aggregation = {mode!r} needs {key} (not given)")
-        criterion_keys = ("aggregation_time", "aggregation_coordination", "aggregation_max_time")
-        stray = [k for k in criterion_keys if getattr(self, k) is not None and k not in needed]
-        if mode == "none":
-            stray += [
-                k
-                for k in ("aggregation_area_fraction", "aggregation_speed")
-                if getattr(self, k) is not None
-            ]
-        langevin = self.aggregation_thermostat == "langevin"
-        if langevin != (self.aggregation_thermostat_time is not None):
-            raise SceneError(
-                "[protocol] aggregation_thermostat_time is given with aggregation_thermostat = "
-                "'langevin' and only then (here: aggregation_thermostat = "
-                f"{self.aggregation_thermostat!r}, aggregation_thermostat_time = "
-                f"{self.aggregation_thermostat_time!r})"
-            )
-        if self.aggregation_thermostat is not None and self.aggregation_speed is None:
-            raise SceneError(
-                f"[protocol] aggregation_thermostat = {self.aggregation_thermostat!r} is used "
-                "only with aggregation_speed (not given): set aggregation_speed or remove "
-                "aggregation_thermostat"
-            )
-        if stray:
-            uses = {
-                "aggregation_time": "aggregation = 'time'",
-                "aggregation_coordination": "aggregation = 'coordination'",
-                "aggregation_max_time": "aggregation = 'coordination'",
-            }
-            key = stray[0]
-            raise SceneError(
-                f"[protocol] {key} = {getattr(self, key)!r} is used only with "
-                f"{uses.get(key, 'aggregation = time | coordination')}; this scene has "
-                f"aggregation = {mode!r}: remove {key} or set aggregation"
             )
 
     @property
@@ -738,152 +551,6 @@ class ProtocolConfig(SceneSection):
         return parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
 
 
-@dataclass(frozen=True)
-class ProbingConfig(SceneSection):
-    """``[probing]``: elastic probes at states of every path (docs/science/dem-model.md §1.6,
-    step 4).
-
-    Fields (defaults in brackets):
-
-    - ``enabled`` [true]: probe at all.
-    - ``states`` ["A, B, C, B'"]: labelled states probed (any of A, B, C, B', R<k>_end for the
-      k-th radial path); "" = none.
-    - ``every_n_increments`` [2]: also probe every n-th relaxed increment of each path (0 = only
-      the labelled states).
-    - ``dynamic`` [true]: run the dynamic strain probes (amplitude sweep).
-    - ``dynamic_states`` ["all"]: where the dynamic sweep runs: "all" probed states, or a
-      comma-separated list of probe labels (A, B, C, B', R<k>_end, or <path>_<increment> such
-      as A_to_C_4 for an unlabelled increment); the linear-response probe runs at every probed
-      state. On large scenes (``paper``) the sweep costs ~3000× the linear response, so it is
-      kept at one state as the check of the linear response there.
-    - ``amplitude_min`` [1e-9], ``amplitude_max`` [1e-3], ``amplitudes_per_decade`` [1]:
-      the log-spaced strain amplitudes of the sweep (docs/science/dem-model.md §1.6:
-      ≈1e-7…1e-3). The sweep starts at
-      1e-9 because a state reached by monotonic loading sits on its yield surface: measured on
-      the smoke scene at the end of K0 loading, the continued-loading branch (+Δε_yy) is
-      already plastic at 1e-7 (secant 22e3 against 40e3 on reversal), the ± average agrees
-      with the linear response only at 1e-8 and below.
-    - ``apply_steps`` [200]: fewest steps over which a probe strain is applied (more when the
-      inertial-number cap needs it).
-    - ``relax_unbalanced_force`` [1e-7]: UFR at which a probe is relaxed (stricter than the path:
-      a probe of 1e-6 changes σ by ~1e-4 relative).
-    - ``relax_max_steps`` [60000]: most relaxation steps of one probe.
-    - ``plateau_tolerance`` [0.02]: relative tolerance of the elastic-plateau rule
-      (:func:`dem_taichi.analysis.arrays.elastic_plateau`).
-    - ``linear`` [true]: run the linear-response probe.
-    - ``sliding_contacts`` ["stuck"]: how contacts at the Coulomb cap respond in the
-      linear-response probe ("stuck": spring k_t, the small-amplitude reversal branch that a
-      ± probe mostly sees; "free": stay on the cap).
-    """
-
-    SECTION = "probing"
-    enabled: bool = field(default=True, metadata=_doc("probe at all", "-"))
-    states: str = field(
-        default="A, B, C, B'",
-        metadata=_list(doc='labelled states probed (A, B, C, B\', R<k>_end); "" = none', unit="-"),
-    )
-    every_n_increments: int = field(
-        default=2,
-        metadata=_range(
-            0,
-            doc=(
-                "also probe every n-th relaxed increment of each path (0: only the labelled states)"
-            ),
-            unit="1",
-        ),
-    )
-    dynamic: bool = field(
-        default=True, metadata=_doc("run the dynamic strain probes (amplitude sweep)", "-")
-    )
-    dynamic_states: str = field(
-        default="all",
-        metadata=_list(
-            doc=('where the dynamic sweep runs: "all" probed states, or a list of probe labels'),
-            unit="-",
-        ),
-    )
-    amplitude_min: float = field(
-        default=1e-9,
-        metadata=_range(
-            0.0, 0.1, lo_open=True, doc="smallest strain amplitude of the dynamic sweep", unit="1"
-        ),
-    )
-    amplitude_max: float = field(
-        default=1e-3,
-        metadata=_range(
-            0.0, 0.1, lo_open=True, doc="largest strain amplitude of the dynamic sweep", unit="1"
-        ),
-    )
-    amplitudes_per_decade: int = field(
-        default=1,
-        metadata=_range(1, 20, doc="log-spaced amplitudes per decade of the sweep", unit="1"),
-    )
-    apply_steps: int = field(
-        default=200,
-        metadata=_range(1, doc="fewest steps over which a probe strain is applied", unit="steps"),
-    )
-    relax_unbalanced_force: float = field(
-        default=1e-7,
-        metadata=_range(
-            0.0,
-            1.0,
-            lo_open=True,
-            doc="unbalanced-force ratio at which a probe is relaxed",
-            unit="1",
-        ),
-    )
-    relax_max_steps: int = field(
-        default=60_000, metadata=_range(1, doc="most relaxation steps of one probe", unit="steps")
-    )
-    plateau_tolerance: float = field(
-        default=0.02,
-        metadata=_range(
-            0.0, 1.0, lo_open=True, doc="relative tolerance of the elastic-plateau rule", unit="1"
-        ),
-    )
-    linear: bool = field(default=True, metadata=_doc("run the linear-response probe", "-"))
-    sliding_contacts: str = field(
-        default="stuck",
-        metadata=_choices(
-            "stuck",
-            "free",
-            doc=(
-                "contacts at the Coulomb cap in the linear response: 'stuck' spring "
-                "k_t, 'free' stay on the cap"
-            ),
-        ),
-    )
-
-    def check(self) -> None:
-        if self.amplitude_min > self.amplitude_max:
-            raise SceneError(
-                f"[probing] amplitude_min = {self.amplitude_min} > amplitude_max = "
-                f"{self.amplitude_max}: allowed (0, amplitude_max]"
-            )
-
-    @property
-    def state_labels(self) -> tuple[str, ...]:
-        """Labels of ``states``, parsed (comma-separated, blanks stripped)."""
-        return tuple(s.strip() for s in self.states.split(",") if s.strip())
-
-    def runs_dynamic(self, label: str) -> bool:
-        """Whether the dynamic sweep runs at the probe labelled ``label``."""
-        if not self.dynamic:
-            return False
-        if self.dynamic_states.strip() == "all":
-            return True
-        return label in {s.strip() for s in self.dynamic_states.split(",") if s.strip()}
-
-    @property
-    def amplitudes(self) -> tuple[float, ...]:
-        """Log-spaced amplitudes from ``amplitude_min`` to ``amplitude_max`` (both included)."""
-        lo, hi = math.log10(self.amplitude_min), math.log10(self.amplitude_max)
-        n = max(int(round((hi - lo) * self.amplitudes_per_decade)), 0) + 1
-        if n == 1:
-            return (self.amplitude_min,)
-        return tuple(10 ** (lo + (hi - lo) * k / (n - 1)) for k in range(n))
-
-
 def protocol_settings(scene) -> ProtocolConfig:
     """The scene's ``[protocol]`` section, or the defaults when it has none; refuses
     (:class:`SceneError`, naming the key) a section that does not fit the rest of the scene
@@ -891,8 +558,3 @@ def protocol_settings(scene) -> ProtocolConfig:
     config = scene.extensions.get("protocol", ProtocolConfig())
     config.check_scene(scene)
     return config
-
-
-def probing_settings(scene) -> ProbingConfig:
-    """The scene's ``[probing]`` section, or the defaults when it has none."""
-    return scene.extensions.get("probing", ProbingConfig())

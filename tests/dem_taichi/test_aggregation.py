@@ -20,7 +20,8 @@ import pytest
 
 from dem_taichi.io.schema import stage_code
 from dem_taichi.scene.config import SceneError, load_scene, scene_from_toml, scene_to_toml
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig, protocol_settings
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig, protocol_settings
 
 ATTRACTIVE = {"f_max_edge": 100.0, "f_max_inner": 100.0, "k_a_edge": 200.0, "k_a_inner": 200.0}
 

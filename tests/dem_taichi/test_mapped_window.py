@@ -361,6 +361,27 @@ def test_run_findings_falls_back_to_the_scene_scale(tmp_path):
         assert math.isnan(row[key]), key
 
 
+def test_findings_from_arrays_are_run_findings_without_the_run_record(tmp_path):
+    """run_findings reads the folder, then assembles with findings_from_arrays (issue 21): given
+    the same arrays, the scene's scale and the rod shape of the scene (as a run in memory has
+    them, not read from the folder's TOML), it gives every finding of the folder's row."""
+    from dem_taichi.analysis.findings import findings_from_arrays, path_arrays, probe_arrays
+    from dem_taichi.io import open_history, open_probes
+
+    folder = write_run(tmp_path / "run")
+    summary = json.loads((folder / "summary.json").read_text())
+    path = path_arrays(summary, open_history(folder / "relaxed_states.nc"))
+    probes = probe_arrays(open_probes(folder / "probes.nc"))
+    rods = load_scene("smoke").particles
+    shape = (rods.n_spheres, rods.spacing, rods.diameter)
+    found = findings_from_arrays(path, probes, 40, 1.0, shape)
+    row = run_findings(folder)
+    assert set(row) - set(found) == {"run", "max_i", "seconds", "workers"}
+    np.testing.assert_equal(found, {key: row[key] for key in found})  # NaN equals NaN
+    assert found["N_rectangle"] == pytest.approx(1.30 * math.pi / 4.0, rel=1e-12)
+    assert math.isnan(findings_from_arrays(path, probes, 40)["N_rectangle"])  # no rod shape
+
+
 def test_sweep_dataset_and_summary_carry_the_new_findings(tmp_path):
     """open_sweep takes the new scalars of each finished member; the table shows them."""
     from dem_taichi.sweep.results import (

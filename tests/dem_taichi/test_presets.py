@@ -18,7 +18,8 @@ from dem_taichi.scene.config import (
 )
 from dem_taichi.scene.options import scene_from_options, with_preset
 from dem_taichi.scene.presets import PRESETS, preset_keys
-from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+from dem_taichi.scene.probing_sections import probing_settings
+from dem_taichi.scene.protocol_sections import protocol_settings
 from dem_taichi.sweep.spec import sweep_from_toml
 
 BUILTIN = ("smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded")

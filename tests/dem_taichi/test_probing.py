@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from dem_taichi.scene.config import load_scene
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 PROTOCOL = ProtocolConfig()
 

@@ -42,7 +42,8 @@ def smoke_protocol_scene(**protocol):
         save_path_states=True,
     )
     settings.update(protocol)
-    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
 
     extensions = {
         "protocol": ProtocolConfig(**settings),
@@ -214,7 +215,8 @@ def test_protocol_servo_holds_targets_on_the_engine(run):
     bitwise unchanged."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.paths import ProtocolRunner
-    from dem_taichi.scene.protocol_sections import ProbingConfig, protocol_settings
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import protocol_settings
 
     sim = Simulation.from_checkpoint(run.files["state_A"])
     config = protocol_settings(sim.scene)
@@ -288,7 +290,8 @@ def test_dynamic_sweep_only_at_the_chosen_states(run):
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.runner import RelaxedState
-    from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
 
     probing = ProbingConfig(dynamic_states="C, A_to_C_2", amplitude_min=1e-8, amplitude_max=1e-8)
     assert probing.runs_dynamic("C") and probing.runs_dynamic("A_to_C_2")
@@ -695,6 +698,36 @@ def test_report_findings_equal_the_folder_findings(run):
     k0 = sorted((p, r) for _, path, p, r in linear if path == "A_to_C")
     assert iso == folder["iso_ratio"]
     assert [p for p, _ in k0] == folder["k0_p"] and [r for _, r in k0] == folder["k0_ratio"]
+
+
+def memory_findings_equal_the_folder_findings(result) -> None:
+    """The findings of a run held in memory (its ProtocolResult's arrays, as
+    benchmarks/paired_paths.py assembles them) equal run_findings / state_findings of its
+    folder: both routes assemble them with findings_from_arrays / states_from_arrays."""
+    from dem_taichi.analysis.findings import (
+        findings_from_arrays,
+        run_findings,
+        state_findings,
+        states_from_arrays,
+    )
+    from dem_taichi.protocol.report import path_arrays, probe_arrays
+
+    rods = smoke_protocol_scene().particles
+    shape = (rods.n_spheres, rods.spacing, rods.diameter)
+    path, probes = path_arrays(result), probe_arrays(result)
+    memory = findings_from_arrays(path, probes, result.n_rods, result.stress_scale_kpa, shape)
+    folder = run_findings(result.out_dir)
+    # what the folder adds is the run's record, not a finding over its arrays
+    assert set(folder) - set(memory) == {"run", "max_i", "seconds", "workers"}
+    np.testing.assert_equal(memory, {key: folder[key] for key in memory})  # NaN equals NaN
+    assert math.isfinite(memory["lambda_star"]) and memory["iso_ratio"]
+    np.testing.assert_equal(states_from_arrays(path.states, probes), state_findings(result.out_dir))
+
+
+def test_findings_in_memory_equal_the_folder_findings(run):
+    """One assembly of the findings over arrays (issue 21): the route of a run in memory and
+    the route of its folder's files give the same findings on the smoke run."""
+    memory_findings_equal_the_folder_findings(run)
 
 
 def test_the_work_ledger_accounts_for_every_step_of_every_stage(run):

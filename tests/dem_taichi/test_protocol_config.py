@@ -5,13 +5,8 @@ from __future__ import annotations
 import pytest
 
 from dem_taichi.scene.config import SceneError, load_scene, scene_from_toml, scene_to_toml
-from dem_taichi.scene.protocol_sections import (
-    ProbingConfig,
-    ProtocolConfig,
-    parse_number_list,
-    probing_settings,
-    protocol_settings,
-)
+from dem_taichi.scene.probing_sections import ProbingConfig, probing_settings
+from dem_taichi.scene.protocol_sections import ProtocolConfig, parse_number_list, protocol_settings
 
 
 def test_sections_load_from_a_scene_and_round_trip():
@@ -33,6 +28,14 @@ def test_defaults_when_the_scene_has_no_section():
     assert protocol_settings(scene) == ProtocolConfig()
     assert probing_settings(scene) == ProbingConfig()
     assert ProtocolConfig().stress_tolerance == 1e-3
+
+
+def test_the_probing_names_still_import_from_protocol_sections():
+    """[probing] moved to its own module (issue 21); the old import path gives the same names."""
+    from dem_taichi.scene import protocol_sections
+
+    assert protocol_sections.ProbingConfig is ProbingConfig
+    assert protocol_sections.probing_settings is probing_settings
 
 
 def test_builtin_scenes_with_sections_load():

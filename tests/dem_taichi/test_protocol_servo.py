@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from dem_taichi.protocol.runner import ProtocolError, ProtocolRunner
-from dem_taichi.scene.protocol_sections import ProbingConfig, ProtocolConfig
+from dem_taichi.scene.probing_sections import ProbingConfig
+from dem_taichi.scene.protocol_sections import ProtocolConfig
 
 DELAY_STEPS = 400  # D = 4 time units at dt = 0.01
 TIME_STEP = 0.01

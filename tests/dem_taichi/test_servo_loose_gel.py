@@ -22,7 +22,8 @@ import numpy as np
 from dem_taichi.engine.simulation import Simulation
 from dem_taichi.protocol.paths import ProtocolRunner
 from dem_taichi.protocol.records import StageRecord
-from dem_taichi.scene.protocol_sections import probing_settings, protocol_settings
+from dem_taichi.scene.probing_sections import probing_settings
+from dem_taichi.scene.protocol_sections import protocol_settings
 
 STATE = Path(__file__).resolve().parents[1] / "data" / "loose_gel_state_A.npz"
 
