@@ -61,7 +61,6 @@ import math
 import numbers
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -76,6 +75,13 @@ from dem_taichi.engine.failures import (
     runaway_kinetic_energy,
 )
 from dem_taichi.engine.measures import BondedMeasures, Measures
+from dem_taichi.engine.parameters import (
+    EngineParameters,
+    Physics,
+    interaction_cutoff,
+    resolve_parameters,
+    resolve_physics,
+)
 from dem_taichi.engine.runtime import ensure_runtime
 from dem_taichi.engine.simulation_state import SimulationState
 from dem_taichi.engine.simulation_views import SimulationViews
@@ -117,23 +123,6 @@ def step_count(name: str, value: Any, low: int) -> int:
     if count < low:
         raise ValueError(f"{name} = {value!r} is out of range: allowed integers >= {low}")
     return count
-
-
-@dataclass(frozen=True)
-class Physics:
-    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing).
-
-    ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
-    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
-    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`).
-    """
-
-    friction: bool
-    long_range: bool
-    vdw: bool
-    bonded: bool = False
-    chain: int = 1
-    rolling: bool = False
 
 
 class Simulation(SimulationViews, SimulationState):
@@ -179,13 +168,7 @@ class Simulation(SimulationViews, SimulationState):
         self.bonded = scene.bonded
         charge, _, _ = species_parameters(scene)
         self.charge = charge
-        lr_on = scene.long_range.enabled and bool(np.any(charge != 0))
-        vdw_on = scene.van_der_waals.enabled and bool(np.any(charge != 0))
-        friction_on = scene.contact.friction and scene.contact.k_t > 0
-        self.physics = Physics(
-            friction=friction_on, long_range=lr_on, vdw=vdw_on, bonded=self.bonded,
-            chain=self.geometry.n_spheres, rolling=scene.rolling_parameters.enabled,
-        )  # fmt: skip
+        self.physics = resolve_physics(scene, charge, self.geometry.n_spheres)
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
         self.n_bodies = self.n_discs if self.bonded else self.n_rods
@@ -205,8 +188,13 @@ class Simulation(SimulationViews, SimulationState):
                 f"initial state of {len(gas.angle)} bodies does not fit this scene "
                 f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
             )
-        self.cutoff = self._cutoff()
+        self.cutoff = interaction_cutoff(scene, self.geometry.diameter, self.physics)
         self.list_radius = self.cutoff + scene.integration.skin
+        #: the scene's runtime parameters, resolved once (the device array ``params`` holds
+        #: them, with the run-time changes since: :attr:`parameters`)
+        self.scene_parameters = resolve_parameters(
+            scene, self.body, self.physics, self.list_radius, self.cutoff
+        )
         capacity = neighbour_capacity or self._initial_capacity()
         self._allocate(capacity, gas.cell_lengths)
         self._upload_gas(gas)
@@ -216,16 +204,6 @@ class Simulation(SimulationViews, SimulationState):
 
     # ------------------------------------------------------------------------------------------
     # set-up
-    def _cutoff(self) -> float:
-        d = self.geometry.diameter
-        reach = 0.0
-        if self.physics.long_range:
-            table = pair_table(self.scene)
-            reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
-        if self.physics.vdw:
-            reach = max(reach, self.scene.van_der_waals.f_max / self.scene.van_der_waals.k)
-        return d + reach
-
     def _initial_capacity(self) -> int:
         # half list: about half the discs within r_list of a disc at the densest packing
         r = self.list_radius / self.geometry.diameter
@@ -258,38 +236,18 @@ class Simulation(SimulationViews, SimulationState):
         for name in ("nbr_xi", "nbr_psi"):
             shape = self.a[name].shape
             self.a[name].from_numpy(np.zeros(shape, dtype=self._real))
-        self.a["params"].from_numpy(self._default_params())
+        self.parameters = self.scene_parameters
 
-    def _default_params(self) -> np.ndarray:
-        s, geo = self.scene, self.body
-        p = np.zeros(L.N_PARAMS)
-        p[L.P_DT] = s.time_step
-        p[L.P_KN] = s.contact.k_n
-        p[L.P_GN] = s.gamma_n
-        p[L.P_KT] = s.contact.k_t if self.physics.friction else 0.0
-        p[L.P_GT] = s.contact.gamma_t
-        p[L.P_MU] = s.contact.mu
-        p[L.P_ALPHA] = s.integration.local_damping
-        p[L.P_MASS] = geo.mass
-        p[L.P_INERTIA] = geo.inertia
-        p[L.P_DIAM] = geo.diameter
-        p[L.P_RLIST] = self.list_radius
-        p[L.P_SKIN] = s.integration.skin
-        p[L.P_VDW_F] = s.van_der_waals.f_max
-        p[L.P_VDW_K] = s.van_der_waals.k
-        p[L.P_MAX_OFFSET] = geo.max_offset
-        p[L.P_MAX_OVERLAP] = s.integration.max_overlap * geo.diameter
-        p[L.P_REACH] = geo.length + self.list_radius
-        p[L.P_CUT] = self.cutoff
-        p[L.P_SPACING] = s.particles.spacing
-        if self.bonded:
-            b = s.bond_parameters
-            p[[L.P_BOND_KN, L.P_BOND_KT, L.P_BOND_KB]] = b.k_n, b.k_t, b.k_b
-            p[[L.P_BOND_GN, L.P_BOND_GT, L.P_BOND_GB]] = b.gamma_n, b.gamma_t, b.gamma_b
-            p[L.P_BOND_BREAK] = b.breakage_force
-        roll = s.rolling_parameters
-        p[[L.P_ROLL_K, L.P_ROLL_G, L.P_ROLL_CAP]] = roll.stiffness, roll.damping, roll.cap
-        return p.astype(self._real)
+    @property
+    def parameters(self) -> EngineParameters:
+        """The runtime parameters the kernels integrate with (the device array ``params``: the
+        scene's, with the changes made since by :meth:`set_parameters`, the cell control or a
+        restored state)."""
+        return EngineParameters.from_vector(self.a["params"].to_numpy())
+
+    @parameters.setter
+    def parameters(self, values: EngineParameters) -> None:
+        self.a["params"].from_numpy(values.vector(self._real))
 
     def _upload_gas(self, gas: GasState) -> None:
         cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
@@ -401,9 +359,8 @@ class Simulation(SimulationViews, SimulationState):
     # stepping
     def _set_rates(self, rates: np.ndarray) -> None:
         self._rates = np.asarray(rates, dtype=float)
-        params = self.a["params"].to_numpy()
-        params[L.P_RATE_X], params[L.P_RATE_Y] = self._rates
-        self.a["params"].from_numpy(params)
+        rate_x, rate_y = self._rates
+        self.parameters = self.parameters.with_changes(rate_x=rate_x, rate_y=rate_y)
 
     def _start_fire(self) -> None:
         """Set the FIRE array for a new minimisation (:mod:`dem_taichi.kernels.fire`): the

@@ -11,29 +11,19 @@ scene (:mod:`dem_taichi.io.checkpoint`).
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
 from dem_taichi.engine.device_arrays import STATE_ARRAYS
+from dem_taichi.engine.parameters import EngineParameters, Physics
 from dem_taichi.engine.state import convert_neighbour_list, fit_rolling_spring, upgrade_state
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.scene.geometry import GasState, RodGeometry
 
 __all__ = ["SimulationState"]
-
-_PARAMETER_INDEX = {
-    "time_step": L.P_DT,
-    "k_n": L.P_KN,
-    "gamma_n": L.P_GN,
-    "k_t": L.P_KT,
-    "gamma_t": L.P_GT,
-    "mu": L.P_MU,
-    "local_damping": L.P_ALPHA,
-}
 
 #: (device array, state key) of every state array, in the order of the state dict (a state
 #: array always has its key: DeviceArray checks it).
@@ -46,8 +36,7 @@ class SimulationState:
     """State, parameters and checkpoints of a simulation (mixed into :class:`Simulation`)."""
 
     # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
-    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
-    # not named here: engine imports this module.
+    # type checker only: annotations make no attribute).
     scene: Scene
     arch: str
     precision: str
@@ -55,7 +44,7 @@ class SimulationState:
     deterministic: bool
     a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
     body: RodGeometry
-    physics: Any
+    physics: Physics
     full_list: bool
     n_rods: int
     n_discs: int
@@ -83,6 +72,12 @@ class SimulationState:
         def _launch(self, kernel: Any, **scalars: Any) -> None: ...
 
         def _grow(self, capacity: int) -> None: ...
+
+        @property
+        def parameters(self) -> EngineParameters: ...
+
+        @parameters.setter
+        def parameters(self, values: EngineParameters) -> None: ...
 
         @property
         def cell_lengths(self) -> np.ndarray: ...
@@ -120,28 +115,24 @@ class SimulationState:
             a[name].from_numpy(np.ascontiguousarray(state[key]))
         self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
         self.step = int(state["step"])
-        params = state["params"]
-        self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
+        params = EngineParameters.from_vector(state["params"])
+        self._rates = np.array([params.rate_x, params.rate_y], dtype=float)
         # disc positions are derived: recompute them from the centroids
         from dem_taichi.kernels.common import place_all_discs
 
         self._launch(place_all_discs, ns=self.body.n_spheres)
 
     def set_parameters(self, **values: float) -> None:
-        """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""
-        params = self.a["params"].to_numpy()
-        for name, value in values.items():
-            if name not in _PARAMETER_INDEX:
-                raise ValueError(
-                    f"unknown parameter {name!r}; allowed: {', '.join(sorted(_PARAMETER_INDEX))}"
-                )
-            if not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} = {value!r} must be finite and >= 0")
-            params[_PARAMETER_INDEX[name]] = value
-        self.a["params"].from_numpy(params)
+        """Change runtime parameters by name (:data:`dem_taichi.engine.parameters.
+        TUNABLE_PARAMETERS`: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping)."""
+        self.parameters = self.parameters.tuned(**values)
 
     def get_parameter(self, name: str) -> float:
-        return float(self.a["params"].to_numpy()[_PARAMETER_INDEX[name]])
+        """The runtime parameter ``name`` (a field of
+        :class:`dem_taichi.engine.parameters.EngineParameters`) the kernels integrate with."""
+        if name not in L.PARAMETER_SLOTS:
+            raise KeyError(f"unknown parameter {name!r}; allowed: {', '.join(L.PARAMETER_SLOTS)}")
+        return float(getattr(self.parameters, name))
 
     @property
     def time_step(self) -> float:

@@ -19,6 +19,7 @@ import numpy as np
 
 from dem_taichi.engine.measures import BondedMeasures, history_record
 from dem_taichi.engine.network import interacting_entries, mechanical_coordination, network_snapshot
+from dem_taichi.engine.parameters import EngineParameters, Physics
 from dem_taichi.kernels import layout as L
 from dem_taichi.physics.bonds import rod_axes, unwrapped_chains
 from dem_taichi.physics.snapshot import NetworkSnapshot
@@ -32,13 +33,12 @@ class SimulationViews:
     """Measures, rods and network of a simulation (mixed into :class:`Simulation`)."""
 
     # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
-    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
-    # not named here: engine imports this module.
+    # type checker only: annotations make no attribute).
     scene: Scene
     a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
     geometry: RodGeometry
     body: RodGeometry
-    physics: Any
+    physics: Physics
     bonded: bool
     full_list: bool
     n_rods: int
@@ -52,6 +52,9 @@ class SimulationViews:
     if TYPE_CHECKING:
 
         def _launch(self, kernel: Callable[..., Any], **scalars: Any) -> None: ...
+
+        @property
+        def parameters(self) -> EngineParameters: ...
 
     def _measure_sums(self) -> np.ndarray:
         from dem_taichi.kernels.measures import measure_sums
@@ -181,15 +184,15 @@ class SimulationViews:
         from dem_taichi.physics.snapshot import BondNetwork
 
         g = chain_bonds(self.n_rods, self.geometry.n_spheres)
-        params = self.a["params"].to_numpy().astype(float)
+        params = self.parameters
         return BondNetwork(
             chain=self.geometry.n_spheres,
             g=g,
             intact=self.a["bond_intact"].to_numpy()[g] == 1,
-            rest_length=float(params[L.P_SPACING]),
-            k_n=float(params[L.P_BOND_KN]),
-            k_t=float(params[L.P_BOND_KT]),
-            k_b=float(params[L.P_BOND_KB]),
+            rest_length=params.spacing,
+            k_n=params.bond_k_n,
+            k_t=params.bond_k_t,
+            k_b=params.bond_k_b,
         )
 
     def snapshot(self) -> NetworkSnapshot:
@@ -204,7 +207,7 @@ class SimulationViews:
             self.body_angles(),
             self.body,
             species_parameters(self.scene),
-            self.a["params"].to_numpy().astype(float),
+            self.parameters,
             self.physics.vdw,
             bonds=self._bond_network() if self.bonded else None,
             rolling_springs=(
