@@ -26,15 +26,23 @@ import numpy as np
 
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene
-from dem_taichi.scene.geometry import RodGeometry, pair_table
+from dem_taichi.scene.geometry import (
+    RodGeometry,
+    body_geometry,
+    pair_table,
+    rod_geometry,
+    species_parameters,
+)
 
 __all__ = [
     "TUNABLE_PARAMETERS",
     "EngineParameters",
     "Physics",
+    "ResolvedScene",
     "interaction_cutoff",
     "resolve_parameters",
     "resolve_physics",
+    "resolve_scene",
 ]
 
 
@@ -69,13 +77,16 @@ def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics
     )
 
 
-def interaction_cutoff(scene: Scene, diameter: float, physics: Physics) -> float:
+def interaction_cutoff(
+    scene: Scene, diameter: float, physics: Physics, table: np.ndarray | None = None
+) -> float:
     """The interaction cut-off (centre distance, in d): ``diameter``, plus the longest range of
-    the long-range law among charged species pairs and of the van der Waals law (F_w / k_w) when
-    they are on."""
+    the long-range law among charged species pairs (``table``: the scene's
+    :func:`dem_taichi.scene.geometry.pair_table`, computed when not given) and of the van der
+    Waals law (F_w / k_w) when they are on."""
     reach = 0.0
     if physics.long_range:
-        table = pair_table(scene)
+        table = pair_table(scene) if table is None else table
         reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
     if physics.vdw:
         reach = max(reach, scene.van_der_waals.f_max / scene.van_der_waals.k)
@@ -217,6 +228,38 @@ def resolve_parameters(
         rolling_damping=roll.damping,
         rolling_cap=roll.cap,
     )
+
+
+@dataclass(frozen=True)
+class ResolvedScene:
+    """What the engine takes from a scene, resolved once (:func:`resolve_scene`): the rod's
+    ``geometry``, the ``body`` geometry (the rod, or one disc of a bonded rod), the ``charge`` of
+    each place in the rod, the long-range law's ``pair_table`` of the species pairs
+    (:func:`dem_taichi.scene.geometry.pair_table`), the compile-time ``physics``, the interaction
+    ``cutoff`` and the neighbour-list radius ``list_radius`` (centre distances, length) and the
+    runtime ``parameters``."""
+
+    geometry: RodGeometry
+    body: RodGeometry
+    charge: np.ndarray
+    pair_table: np.ndarray
+    physics: Physics
+    cutoff: float
+    list_radius: float
+    parameters: EngineParameters
+
+
+def resolve_scene(scene: Scene) -> ResolvedScene:
+    """The scene as the engine uses it: geometry, switches, cut-off and list radius (cut-off +
+    ``[integration] skin``), runtime parameters (:class:`ResolvedScene`)."""
+    geometry, body = rod_geometry(scene), body_geometry(scene)
+    charge, _, _ = species_parameters(scene)
+    table = pair_table(scene)
+    physics = resolve_physics(scene, charge, geometry.n_spheres)
+    cutoff = interaction_cutoff(scene, geometry.diameter, physics, table)
+    list_radius = cutoff + scene.integration.skin
+    parameters = resolve_parameters(scene, body, physics, list_radius, cutoff)
+    return ResolvedScene(geometry, body, charge, table, physics, cutoff, list_radius, parameters)
 
 
 def _check_slots() -> None:

@@ -75,13 +75,7 @@ from dem_taichi.engine.failures import (
     runaway_kinetic_energy,
 )
 from dem_taichi.engine.measures import BondedMeasures, Measures
-from dem_taichi.engine.parameters import (
-    EngineParameters,
-    Physics,
-    interaction_cutoff,
-    resolve_parameters,
-    resolve_physics,
-)
+from dem_taichi.engine.parameters import EngineParameters, Physics, resolve_scene
 from dem_taichi.engine.runtime import ensure_runtime
 from dem_taichi.engine.simulation_state import SimulationState
 from dem_taichi.engine.simulation_views import SimulationViews
@@ -91,11 +85,7 @@ from dem_taichi.scene.config import Scene, load_scene
 from dem_taichi.scene.geometry import (
     GasState,
     bodies_from_rods,
-    body_geometry,
     generate_gas,
-    pair_table,
-    rod_geometry,
-    species_parameters,
 )
 
 __all__ = [
@@ -163,12 +153,12 @@ class Simulation(SimulationViews, SimulationState):
                 f'[integration] relaxation = "fire" needs the serial execution; execution = '
                 f"{execution!r} (arch {arch!r}, deterministic={deterministic}) has no FIRE kernel"
             )
-        self.geometry = rod_geometry(scene)
-        self.body = body_geometry(scene)
+        resolved = resolve_scene(scene)  # the scene read once for the engine
+        self.geometry, self.body = resolved.geometry, resolved.body
         self.bonded = scene.bonded
-        charge, _, _ = species_parameters(scene)
-        self.charge = charge
-        self.physics = resolve_physics(scene, charge, self.geometry.n_spheres)
+        self.charge = resolved.charge
+        self._pair_table = resolved.pair_table
+        self.physics = resolved.physics
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
         self.n_bodies = self.n_discs if self.bonded else self.n_rods
@@ -188,13 +178,10 @@ class Simulation(SimulationViews, SimulationState):
                 f"initial state of {len(gas.angle)} bodies does not fit this scene "
                 f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
             )
-        self.cutoff = interaction_cutoff(scene, self.geometry.diameter, self.physics)
-        self.list_radius = self.cutoff + scene.integration.skin
-        #: the scene's runtime parameters, resolved once (the device array ``params`` holds
-        #: them, with the run-time changes since: :attr:`parameters`)
-        self.scene_parameters = resolve_parameters(
-            scene, self.body, self.physics, self.list_radius, self.cutoff
-        )
+        self.cutoff, self.list_radius = resolved.cutoff, resolved.list_radius
+        #: the scene's runtime parameters (the device array ``params`` holds them, with the
+        #: run-time changes since: :attr:`parameters`)
+        self.scene_parameters = resolved.parameters
         capacity = neighbour_capacity or self._initial_capacity()
         self._allocate(capacity, gas.cell_lengths)
         self._upload_gas(gas)
@@ -229,7 +216,7 @@ class Simulation(SimulationViews, SimulationState):
         self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))
         self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
-        self.a["pair_table"].from_numpy(pair_table(self.scene).astype(self._real))
+        self.a["pair_table"].from_numpy(self._pair_table.astype(self._real))
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))

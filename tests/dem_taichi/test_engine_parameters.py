@@ -18,6 +18,7 @@ from dem_taichi.engine.parameters import (
     interaction_cutoff,
     resolve_parameters,
     resolve_physics,
+    resolve_scene,
 )
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene, load_scene
@@ -98,6 +99,7 @@ def test_resolved_vectors_equal_the_old_default_params_slot_by_slot(name):
     for slot, field in enumerate(L.PARAMETER_SLOTS):
         assert vector[slot] == expected[slot], field
     assert vector.tobytes() == expected.tobytes()
+    assert resolve_scene(reference_scenes()[name]).parameters.vector().tobytes() == vector.tobytes()
 
 
 @pytest.mark.parametrize("name", ["smoke", "smoke_bonded_rolling"])
