@@ -81,6 +81,7 @@ from dem_taichi.engine.simulation_state import SimulationState
 from dem_taichi.engine.simulation_views import SimulationViews
 from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
+from dem_taichi.physics.snapshot import NetworkSnapshot
 from dem_taichi.scene.config import Scene, load_scene
 from dem_taichi.scene.geometry import (
     GasState,
@@ -115,7 +116,7 @@ def step_count(name: str, value: Any, low: int) -> int:
     return count
 
 
-class Simulation(SimulationViews, SimulationState):
+class Simulation(SimulationState):
     """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
 
     ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
@@ -184,6 +185,11 @@ class Simulation(SimulationViews, SimulationState):
         self.scene_parameters = resolved.parameters
         capacity = neighbour_capacity or self._initial_capacity()
         self._allocate(capacity, gas.cell_lengths)
+        #: what the simulation reports (measures, rods, network), read from its arrays
+        self.views = SimulationViews(
+            self.a, self._launch, scene, self.geometry, self.body, self.physics,
+            self.full_list, self.n_rods, self.n_bodies, self.timings,
+        )  # fmt: skip
         self._upload_gas(gas)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
@@ -235,6 +241,64 @@ class Simulation(SimulationViews, SimulationState):
     @parameters.setter
     def parameters(self, values: EngineParameters) -> None:
         self.a["params"].from_numpy(values.vector(self._real))
+
+    # ------------------------------------------------------------------------------------------
+    # what the simulation reports (SimulationViews)
+    @property
+    def cell_lengths(self) -> np.ndarray:
+        """Cell lengths (L_x, L_y), length."""
+        return self.views.cell_lengths
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the start, time."""
+        return self.views.time
+
+    def body_positions(self) -> np.ndarray:
+        """Body centroids (n_bodies, 2) wrapped into the cell [0, L)."""
+        return self.views.body_positions()
+
+    def body_angles(self) -> np.ndarray:
+        """Body angles (n_bodies,), radian."""
+        return self.views.body_angles()
+
+    def rod_positions(self) -> np.ndarray:
+        """Rod centroids (N, 2) wrapped into the cell (bonded rods: mean of the discs)."""
+        return self.views.rod_positions()
+
+    def rod_angles(self) -> np.ndarray:
+        """Rod angles θ (N,), radian (bonded rods: of the end-to-end vector)."""
+        return self.views.rod_angles()
+
+    def disc_positions(self) -> np.ndarray:
+        """Disc centres (M, 2), rod-major; not wrapped."""
+        return self.views.disc_positions()
+
+    @property
+    def n_broken_bonds(self) -> int:
+        """Bonds broken so far (0 for rigid rods)."""
+        return self.views.n_broken_bonds
+
+    @property
+    def history_variables(self):
+        """The history file's variables for this simulation (bonded rods add theirs)."""
+        return self.views.history_variables
+
+    def measure(self) -> BondedMeasures:
+        """History measures (names of ``dem_taichi.io.schema``) now; see the module docstring."""
+        return self.views.measure(self.step, self.reference_lengths, self._rates, self._stage)
+
+    def stress(self) -> np.ndarray:
+        """Stress tensor (2, 2), compression positive, from the current forces."""
+        return self.views.stress()
+
+    def total_energy(self) -> float:
+        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
+        return self.views.total_energy(self.measure())
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The interacting network (:class:`dem_taichi.physics.snapshot.NetworkSnapshot`)."""
+        return self.views.snapshot()
 
     def _upload_gas(self, gas: GasState) -> None:
         cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
