@@ -62,7 +62,7 @@ import numbers
 import time as _time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -77,7 +77,7 @@ from dem_taichi.engine.failures import (
 from dem_taichi.engine.measures import BondedMeasures, Measures
 from dem_taichi.engine.parameters import EngineParameters, Physics, resolve_scene
 from dem_taichi.engine.runtime import ensure_runtime
-from dem_taichi.engine.simulation_state import SimulationState
+from dem_taichi.engine.simulation_state import SimulationState, checkpoint_meta, checkpoint_start
 from dem_taichi.engine.simulation_views import SimulationViews
 from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
@@ -116,7 +116,7 @@ def step_count(name: str, value: Any, low: int) -> int:
     return count
 
 
-class Simulation(SimulationState):
+class Simulation:
     """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
 
     ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
@@ -190,6 +190,11 @@ class Simulation(SimulationState):
             self.a, self._launch, scene, self.geometry, self.body, self.physics,
             self.full_list, self.n_rods, self.n_bodies, self.timings,
         )  # fmt: skip
+        #: copies, restores and checkpoints of the state arrays
+        self.state_io = SimulationState(
+            self.a, self._launch, self._grow, scene, self.body, self.physics, self.full_list,
+            self.n_rods, self.n_discs, self.n_bodies, self._real,
+        )  # fmt: skip
         self._upload_gas(gas)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
@@ -241,6 +246,66 @@ class Simulation(SimulationState):
     @parameters.setter
     def parameters(self, values: EngineParameters) -> None:
         self.a["params"].from_numpy(values.vector(self._real))
+
+    # ------------------------------------------------------------------------------------------
+    # runtime parameters
+    def set_parameters(self, **values: float) -> None:
+        """Change runtime parameters by name (:data:`dem_taichi.engine.parameters.
+        TUNABLE_PARAMETERS`: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping)."""
+        self.parameters = self.parameters.tuned(**values)
+
+    def get_parameter(self, name: str) -> float:
+        """The runtime parameter ``name`` (a field of
+        :class:`dem_taichi.engine.parameters.EngineParameters`) the kernels integrate with."""
+        if name not in L.PARAMETER_SLOTS:
+            raise KeyError(f"unknown parameter {name!r}; allowed: {', '.join(L.PARAMETER_SLOTS)}")
+        return float(getattr(self.parameters, name))
+
+    @property
+    def time_step(self) -> float:
+        """Δt the kernels integrate with (the runtime parameter; the scene's until
+        :meth:`set_parameters` changes it)."""
+        return self.get_parameter("time_step")
+
+    # ------------------------------------------------------------------------------------------
+    # state and checkpoints (SimulationState)
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Numpy copies of the full state (see :mod:`dem_taichi.engine.state`)."""
+        return self.state_io.get_state(self.step, self.reference_lengths)
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore a state from :meth:`get_state` (same scene and precision)."""
+        restored = self.state_io.restore(state)
+        self.step, self.reference_lengths = restored.step, restored.reference_lengths
+        self._rates = restored.rates
+
+    def set_strain_reference(self) -> None:
+        """Take the current cell as L0 of the logarithmic strains."""
+        self.reference_lengths = self.cell_lengths.astype(np.float64)
+
+    def save_checkpoint(self, path: str | Path) -> Path:
+        """Write the full state and the scene to ``path`` (``.npz``) atomically."""
+        from dem_taichi.io.checkpoint import save_checkpoint
+
+        meta = checkpoint_meta(
+            self.scene, self.precision, self.arch, self.execution, self.deterministic,
+            self._stage, self.step,
+        )  # fmt: skip
+        return save_checkpoint(path, self.get_state(), meta)
+
+    @classmethod
+    def from_checkpoint(
+        cls, path: str | Path, arch: str | None = None, precision: str | None = None
+    ) -> Self:
+        """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
+        from dem_taichi.io.checkpoint import load_checkpoint
+
+        arrays, meta = load_checkpoint(path)
+        scene, arguments = checkpoint_start(arrays, meta, arch, precision)
+        sim = cls(scene, **arguments)
+        sim.set_state(arrays)
+        sim._stage = meta.get("stage", "other")
+        return sim
 
     # ------------------------------------------------------------------------------------------
     # what the simulation reports (SimulationViews)
