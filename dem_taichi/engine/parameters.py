@@ -241,7 +241,7 @@ class ResolvedScene:
 
     geometry: RodGeometry
     body: RodGeometry
-    charge: np.ndarray
+    species: tuple[np.ndarray, np.ndarray, np.ndarray]
     pair_table: np.ndarray
     physics: Physics
     cutoff: float
@@ -253,13 +253,13 @@ def resolve_scene(scene: Scene) -> ResolvedScene:
     """The scene as the engine uses it: geometry, switches, cut-off and list radius (cut-off +
     ``[integration] skin``), runtime parameters (:class:`ResolvedScene`)."""
     geometry, body = rod_geometry(scene), body_geometry(scene)
-    charge, _, _ = species_parameters(scene)
+    species = species_parameters(scene)
     table = pair_table(scene)
-    physics = resolve_physics(scene, charge, geometry.n_spheres)
+    physics = resolve_physics(scene, species[0], geometry.n_spheres)
     cutoff = interaction_cutoff(scene, geometry.diameter, physics, table)
     list_radius = cutoff + scene.integration.skin
     parameters = resolve_parameters(scene, body, physics, list_radius, cutoff)
-    return ResolvedScene(geometry, body, charge, table, physics, cutoff, list_radius, parameters)
+    return ResolvedScene(geometry, body, species, table, physics, cutoff, list_radius, parameters)
 
 
 def _check_slots() -> None:

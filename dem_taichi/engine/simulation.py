@@ -157,7 +157,7 @@ class Simulation:
         resolved = resolve_scene(scene)  # the scene read once for the engine
         self.geometry, self.body = resolved.geometry, resolved.body
         self.bonded = scene.bonded
-        self.charge = resolved.charge
+        self.charge = resolved.species[0]
         self._pair_table = resolved.pair_table
         self.physics = resolved.physics
         self.n_rods = scene.particles.n_rods
@@ -187,13 +187,13 @@ class Simulation:
         self._allocate(capacity, gas.cell_lengths)
         #: what the simulation reports (measures, rods, network), read from its arrays
         self.views = SimulationViews(
-            self.a, self._launch, scene, self.geometry, self.body, self.physics,
+            self.a, self._launch, resolved.species, self.geometry, self.body, self.physics,
             self.full_list, self.n_rods, self.n_bodies, self.timings,
         )  # fmt: skip
         #: copies, restores and checkpoints of the state arrays
         self.state_io = SimulationState(
-            self.a, self._launch, self._grow, scene, self.body, self.physics, self.full_list,
-            self.n_rods, self.n_discs, self.n_bodies, self._real,
+            self.a, self._launch, self._grow, scene.particles.rod_model, self.body, self.physics,
+            self.full_list, self.n_rods, self.n_discs, self.n_bodies, self._real,
         )  # fmt: skip
         self._upload_gas(gas)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)

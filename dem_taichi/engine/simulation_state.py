@@ -50,9 +50,9 @@ class SimulationState:
 
     ``arrays``: the simulation's device arrays by name (the dict itself); ``launch(kernel,
     **scalars)`` calls a kernel with its arrays; ``grow(capacity)`` grows the neighbour-list
-    arrays; ``scene``, ``body`` (the engine's bodies), ``physics``, ``full_list`` (a full
-    neighbour list), ``n_rods``, ``n_discs``, ``n_bodies`` and the numpy ``real`` type as the
-    simulation has them.
+    arrays; ``rod_model`` (the scene's, for messages), ``body`` (the engine's bodies),
+    ``physics``, ``full_list`` (a full neighbour list), ``n_rods``, ``n_discs``, ``n_bodies`` and
+    the numpy ``real`` type as the simulation has them.
     """
 
     def __init__(
@@ -60,7 +60,7 @@ class SimulationState:
         arrays: dict[str, Any],
         launch: Callable[..., None],
         grow: Callable[[int], None],
-        scene: Scene,
+        rod_model: str,
         body: RodGeometry,
         physics: Physics,
         full_list: bool,
@@ -72,7 +72,7 @@ class SimulationState:
         self.a = arrays
         self._launch = launch
         self._grow = grow
-        self.scene = scene
+        self.rod_model = rod_model
         self.body = body
         self.physics = physics
         self.full_list = full_list
@@ -96,7 +96,7 @@ class SimulationState:
         if state["angle"].shape != (n,) or state["neighbours"].shape[0] != m:
             raise ValueError(
                 f"state of {state['angle'].shape[0]} bodies does not fit this simulation ({n} "
-                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
+                f"bodies: {self.n_rods} {self.rod_model} rods)"
             )
         if state["angle"].dtype != self._real:
             raise ValueError(

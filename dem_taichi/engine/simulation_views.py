@@ -25,8 +25,7 @@ from dem_taichi.engine.parameters import EngineParameters, Physics
 from dem_taichi.kernels import layout as L
 from dem_taichi.physics.bonds import rod_axes, unwrapped_chains
 from dem_taichi.physics.snapshot import NetworkSnapshot
-from dem_taichi.scene.config import Scene
-from dem_taichi.scene.geometry import RodGeometry, species_parameters
+from dem_taichi.scene.geometry import RodGeometry
 
 __all__ = ["SimulationViews"]
 
@@ -36,16 +35,17 @@ class SimulationViews:
 
     ``arrays``: the simulation's device arrays by name (the dict itself: a capacity growth
     replaces arrays in it); ``launch(kernel, **scalars)`` calls a kernel with its arrays;
-    ``scene``, ``geometry`` (the rod's), ``body`` (the engine's bodies), ``physics``, ``full_list``
-    (a full neighbour list), ``n_rods`` and ``n_bodies`` as the simulation has them; ``timings``:
-    the simulation's seconds by kind, to which the measure kernel's are added.
+    ``species`` (charge, F_max, k_a of each place in the rod), ``geometry`` (the rod's), ``body``
+    (the engine's bodies), ``physics``, ``full_list`` (a full neighbour list), ``n_rods`` and
+    ``n_bodies`` as the simulation has them; ``timings``: the simulation's seconds by kind, to
+    which the measure kernel's are added.
     """
 
     def __init__(
         self,
         arrays: dict[str, Any],
         launch: Callable[..., None],
-        scene: Scene,
+        species: tuple[np.ndarray, np.ndarray, np.ndarray],
         geometry: RodGeometry,
         body: RodGeometry,
         physics: Physics,
@@ -56,7 +56,7 @@ class SimulationViews:
     ) -> None:
         self.a = arrays
         self._launch = launch
-        self.scene = scene
+        self.species = species
         self.geometry = geometry
         self.body = body
         self.physics = physics
@@ -227,7 +227,7 @@ class SimulationViews:
             self._snapshot_positions(),
             self.body_angles(),
             self.body,
-            species_parameters(self.scene),
+            (self.species[0].copy(), self.species[1].copy(), self.species[2].copy()),
             self.parameters,
             self.physics.vdw,
             bonds=self._bond_network() if self.bonded else None,
