@@ -19,6 +19,10 @@
 # (rescale RRaggv10, resample RRaggv10r, free RRfree10, Langevin), its memory tau:
 #   RRl10     tau = 10 time units (the check interval is 0.54: a = 0.947 per check)
 #   RRl100    tau = 100 (a = 0.9946: close to free cooling with a slow refresh)
+# Then longer rods (the study's aspect ratio is not public; its code used 5 discs), on
+# RRaggv10r's setting (the resampling thermostat: no blow-up), 2 edge + (n - 2) inner discs:
+#   RRn8      8 discs per rod
+#   RRn10     10 discs per rod
 # Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
 #   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON] [ONLY]
@@ -66,6 +70,11 @@ for seed in 11 2 12; do
   for tau in 10 100; do
     run RRl${tau}_s$seed "${rr[@]}" "${loose[@]}" --set protocol.aggregation_thermostat=langevin \
       --set protocol.aggregation_thermostat_time=$tau --set scene.seed=$seed
+  done
+done
+for n in 8 10; do
+  for seed in 11 2 12; do
+    run RRn${n}_s$seed "${rr[@]}" "${loose[@]}" --set particles.n_spheres=$n --set scene.seed=$seed
   done
 done
 for seed in 11 2 12; do

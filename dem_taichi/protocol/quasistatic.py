@@ -180,8 +180,12 @@ def refresh_speed(sim: Simulation, speed: float, seed: int, keep: float) -> floa
     v ← a v + sqrt(1 − a²) ξ and ω ← a ω + sqrt(1 − a²) ζ, with a = ``keep`` = exp(−Δt/τ)
     (Δt the interval, τ the velocities' correlation time), ξ ~ N(0, speed²) per component with
     its mean over the bodies removed (the momentum kept) and ζ ~ N(0, speed² M/I)
-    (equipartition). A gas at the temperature stays there on average (a² + 1 − a² = 1); a = 0
-    is :func:`resample_speed`, a → 1 no thermostat. Unlike a fresh draw, a body's velocity and
+    (equipartition). A gas that loses no energy between refreshes stays at the temperature on
+    average (a² + 1 − a² = 1); one that dissipates does not: each refresh puts back only 1 − a²
+    of the target energy (measured on an ageing gel, ``benchmarks/results/
+    study_clay_agitated.md``: kinetic energy per rod 0.004 at a = 0.947, against ≈ 1.4 at the
+    temperature).
+    a = 0 is :func:`resample_speed`, a → 1 no thermostat. Unlike a fresh draw, a body's velocity and
     a cluster's collective motion last ~τ; unlike :func:`rescale_speed`, no mode is pumped
     beyond the temperature. Seeded as :func:`resample_speed` (deterministic, resumable).
     """
