@@ -217,13 +217,13 @@ def resolve_parameters(
         reach=body.length + list_radius,
         cutoff=cutoff,
         spacing=s.particles.spacing,
-        bond_k_n=bond.k_n if bond else 0.0,
-        bond_k_t=bond.k_t if bond else 0.0,
-        bond_k_b=bond.k_b if bond else 0.0,
-        bond_gamma_n=bond.gamma_n if bond else 0.0,
-        bond_gamma_t=bond.gamma_t if bond else 0.0,
-        bond_gamma_b=bond.gamma_b if bond else 0.0,
-        bond_breakage_force=bond.breakage_force if bond else 0.0,
+        bond_k_n=bond.k_n if bond is not None else 0.0,
+        bond_k_t=bond.k_t if bond is not None else 0.0,
+        bond_k_b=bond.k_b if bond is not None else 0.0,
+        bond_gamma_n=bond.gamma_n if bond is not None else 0.0,
+        bond_gamma_t=bond.gamma_t if bond is not None else 0.0,
+        bond_gamma_b=bond.gamma_b if bond is not None else 0.0,
+        bond_breakage_force=bond.breakage_force if bond is not None else 0.0,
         rolling_stiffness=roll.stiffness,
         rolling_damping=roll.damping,
         rolling_cap=roll.cap,
@@ -233,8 +233,9 @@ def resolve_parameters(
 @dataclass(frozen=True)
 class ResolvedScene:
     """What the engine takes from a scene, resolved once (:func:`resolve_scene`): the rod's
-    ``geometry``, the ``body`` geometry (the rod, or one disc of a bonded rod), the ``charge`` of
-    each place in the rod, the long-range law's ``pair_table`` of the species pairs
+    ``geometry``, the ``body`` geometry (the rod, or one disc of a bonded rod), the ``species``
+    (charge, F_max, k_a of each place in the rod: :func:`dem_taichi.scene.geometry.
+    species_parameters`), the long-range law's ``pair_table`` of the species pairs
     (:func:`dem_taichi.scene.geometry.pair_table`), the compile-time ``physics``, the interaction
     ``cutoff`` and the neighbour-list radius ``list_radius`` (centre distances, length) and the
     runtime ``parameters``."""
