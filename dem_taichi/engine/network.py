@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dem_taichi.engine.parameters import EngineParameters
 from dem_taichi.kernels import layout as L
 from dem_taichi.physics.snapshot import NetworkSnapshot
 
@@ -67,7 +68,7 @@ def network_snapshot(
     th: np.ndarray,
     geometry,
     species: tuple[np.ndarray, np.ndarray, np.ndarray],
-    params: np.ndarray,
+    params: EngineParameters,
     vdw: bool,
     bonds=None,
     rolling_springs: np.ndarray | None = None,
@@ -75,7 +76,8 @@ def network_snapshot(
     """The snapshot of the interacting ``entries`` (:func:`interacting_entries`): disc positions
     ``disc_x`` (M, 2), list springs ξ (M, K), cell ``lengths``, wrapped centroids and angles,
     the rod ``geometry``, ``species`` (charge, F_max, k_a) and the runtime ``params`` (k_n, k_t,
-    μ, van der Waals when ``vdw``); ``bonds`` (a :class:`dem_taichi.physics.snapshot.BondNetwork`)
+    μ, van der Waals when ``vdw``; :class:`dem_taichi.engine.parameters.EngineParameters`);
+    ``bonds`` (a :class:`dem_taichi.physics.snapshot.BondNetwork`)
     for bonded rods, whose bodies are discs (``geometry`` of one disc, centroids contiguous along
     each rod); ``rolling_springs`` ψ (M, K) with rolling resistance (κ_r and the cap from
     ``params``)."""
@@ -111,11 +113,11 @@ def network_snapshot(
         charge=charge,
         f_max=f_max,
         k_a=k_a,
-        k_n=float(params[L.P_KN]),
-        k_t=float(params[L.P_KT]),
-        mu=float(params[L.P_MU]),
-        vdw_f_max=float(params[L.P_VDW_F]) if vdw else 0.0,
-        vdw_k=float(params[L.P_VDW_K]) if vdw else 0.0,
+        k_n=params.k_n,
+        k_t=params.k_t,
+        mu=params.mu,
+        vdw_f_max=params.vdw_f_max if vdw else 0.0,
+        vdw_k=params.vdw_k if vdw else 0.0,
         pair_i=i.astype(np.int64),
         pair_j=j.astype(np.int64),
         pair_shift=shift,
@@ -123,6 +125,6 @@ def network_snapshot(
         sliding=(bits & L.PAIR_SLIDING) != 0,
         bonds=bonds,
         rolling_spring=psi,
-        rolling_stiffness=float(params[L.P_ROLL_K]) if psi is not None else 0.0,
-        rolling_cap=float(params[L.P_ROLL_CAP]) if psi is not None else 0.0,
+        rolling_stiffness=params.rolling_stiffness if psi is not None else 0.0,
+        rolling_cap=params.rolling_cap if psi is not None else 0.0,
     )

@@ -61,9 +61,8 @@ import math
 import numbers
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -76,20 +75,18 @@ from dem_taichi.engine.failures import (
     runaway_kinetic_energy,
 )
 from dem_taichi.engine.measures import BondedMeasures, Measures
+from dem_taichi.engine.parameters import EngineParameters, Physics, resolve_scene
 from dem_taichi.engine.runtime import ensure_runtime
-from dem_taichi.engine.simulation_state import SimulationState
+from dem_taichi.engine.simulation_state import SimulationState, checkpoint_meta, checkpoint_start
 from dem_taichi.engine.simulation_views import SimulationViews
 from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
+from dem_taichi.physics.snapshot import NetworkSnapshot
 from dem_taichi.scene.config import Scene, load_scene
 from dem_taichi.scene.geometry import (
     GasState,
     bodies_from_rods,
-    body_geometry,
     generate_gas,
-    pair_table,
-    rod_geometry,
-    species_parameters,
 )
 
 __all__ = [
@@ -119,24 +116,7 @@ def step_count(name: str, value: Any, low: int) -> int:
     return count
 
 
-@dataclass(frozen=True)
-class Physics:
-    """Compile-time physics switches (a ``ti.template()``: physics switched off costs nothing).
-
-    ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
-    discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
-    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`).
-    """
-
-    friction: bool
-    long_range: bool
-    vdw: bool
-    bonded: bool = False
-    chain: int = 1
-    rolling: bool = False
-
-
-class Simulation(SimulationViews, SimulationState):
+class Simulation:
     """A periodic 2D assembly of rods of discs, rigid or bonded (see the module docstring).
 
     ``geometry`` is the rod's; ``body`` the geometry of the engine's bodies (the rod itself, or
@@ -174,18 +154,12 @@ class Simulation(SimulationViews, SimulationState):
                 f'[integration] relaxation = "fire" needs the serial execution; execution = '
                 f"{execution!r} (arch {arch!r}, deterministic={deterministic}) has no FIRE kernel"
             )
-        self.geometry = rod_geometry(scene)
-        self.body = body_geometry(scene)
+        resolved = resolve_scene(scene)  # the scene read once for the engine
+        self.geometry, self.body = resolved.geometry, resolved.body
         self.bonded = scene.bonded
-        charge, _, _ = species_parameters(scene)
-        self.charge = charge
-        lr_on = scene.long_range.enabled and bool(np.any(charge != 0))
-        vdw_on = scene.van_der_waals.enabled and bool(np.any(charge != 0))
-        friction_on = scene.contact.friction and scene.contact.k_t > 0
-        self.physics = Physics(
-            friction=friction_on, long_range=lr_on, vdw=vdw_on, bonded=self.bonded,
-            chain=self.geometry.n_spheres, rolling=scene.rolling_parameters.enabled,
-        )  # fmt: skip
+        self.charge = resolved.species[0]
+        self._pair_table = resolved.pair_table
+        self.physics = resolved.physics
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
         self.n_bodies = self.n_discs if self.bonded else self.n_rods
@@ -205,10 +179,22 @@ class Simulation(SimulationViews, SimulationState):
                 f"initial state of {len(gas.angle)} bodies does not fit this scene "
                 f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
             )
-        self.cutoff = self._cutoff()
-        self.list_radius = self.cutoff + scene.integration.skin
+        self.cutoff, self.list_radius = resolved.cutoff, resolved.list_radius
+        #: the scene's runtime parameters (the device array ``params`` holds them, with the
+        #: run-time changes since: :attr:`parameters`)
+        self.scene_parameters = resolved.parameters
         capacity = neighbour_capacity or self._initial_capacity()
         self._allocate(capacity, gas.cell_lengths)
+        #: what the simulation reports (measures, rods, network), read from its arrays
+        self.views = SimulationViews(
+            self.a, self._launch, resolved.species, self.geometry, self.body, self.physics,
+            self.full_list, self.n_rods, self.n_bodies, self.timings,
+        )  # fmt: skip
+        #: copies, restores and checkpoints of the state arrays
+        self.state_io = SimulationState(
+            self.a, self._launch, self._grow, scene.particles.rod_model, self.body, self.physics,
+            self.full_list, self.n_rods, self.n_discs, self.n_bodies, self._real,
+        )  # fmt: skip
         self._upload_gas(gas)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
@@ -216,16 +202,6 @@ class Simulation(SimulationViews, SimulationState):
 
     # ------------------------------------------------------------------------------------------
     # set-up
-    def _cutoff(self) -> float:
-        d = self.geometry.diameter
-        reach = 0.0
-        if self.physics.long_range:
-            table = pair_table(self.scene)
-            reach = max(reach, float(np.max(np.where(table[..., 0] != 0, table[..., 2], 0.0))))
-        if self.physics.vdw:
-            reach = max(reach, self.scene.van_der_waals.f_max / self.scene.van_der_waals.k)
-        return d + reach
-
     def _initial_capacity(self) -> int:
         # half list: about half the discs within r_list of a disc at the densest packing
         r = self.list_radius / self.geometry.diameter
@@ -251,45 +227,143 @@ class Simulation(SimulationViews, SimulationState):
         self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))
         self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
-        self.a["pair_table"].from_numpy(pair_table(self.scene).astype(self._real))
+        self.a["pair_table"].from_numpy(self._pair_table.astype(self._real))
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
         for name in ("nbr_xi", "nbr_psi"):
             shape = self.a[name].shape
             self.a[name].from_numpy(np.zeros(shape, dtype=self._real))
-        self.a["params"].from_numpy(self._default_params())
+        self.parameters = self.scene_parameters
 
-    def _default_params(self) -> np.ndarray:
-        s, geo = self.scene, self.body
-        p = np.zeros(L.N_PARAMS)
-        p[L.P_DT] = s.time_step
-        p[L.P_KN] = s.contact.k_n
-        p[L.P_GN] = s.gamma_n
-        p[L.P_KT] = s.contact.k_t if self.physics.friction else 0.0
-        p[L.P_GT] = s.contact.gamma_t
-        p[L.P_MU] = s.contact.mu
-        p[L.P_ALPHA] = s.integration.local_damping
-        p[L.P_MASS] = geo.mass
-        p[L.P_INERTIA] = geo.inertia
-        p[L.P_DIAM] = geo.diameter
-        p[L.P_RLIST] = self.list_radius
-        p[L.P_SKIN] = s.integration.skin
-        p[L.P_VDW_F] = s.van_der_waals.f_max
-        p[L.P_VDW_K] = s.van_der_waals.k
-        p[L.P_MAX_OFFSET] = geo.max_offset
-        p[L.P_MAX_OVERLAP] = s.integration.max_overlap * geo.diameter
-        p[L.P_REACH] = geo.length + self.list_radius
-        p[L.P_CUT] = self.cutoff
-        p[L.P_SPACING] = s.particles.spacing
-        if self.bonded:
-            b = s.bond_parameters
-            p[[L.P_BOND_KN, L.P_BOND_KT, L.P_BOND_KB]] = b.k_n, b.k_t, b.k_b
-            p[[L.P_BOND_GN, L.P_BOND_GT, L.P_BOND_GB]] = b.gamma_n, b.gamma_t, b.gamma_b
-            p[L.P_BOND_BREAK] = b.breakage_force
-        roll = s.rolling_parameters
-        p[[L.P_ROLL_K, L.P_ROLL_G, L.P_ROLL_CAP]] = roll.stiffness, roll.damping, roll.cap
-        return p.astype(self._real)
+    @property
+    def parameters(self) -> EngineParameters:
+        """The runtime parameters the kernels integrate with (the device array ``params``: the
+        scene's, with the changes made since by :meth:`set_parameters`, the cell control or a
+        restored state)."""
+        return EngineParameters.from_vector(self.a["params"].to_numpy())
+
+    @parameters.setter
+    def parameters(self, values: EngineParameters) -> None:
+        self.a["params"].from_numpy(values.vector(self._real))
+
+    # ------------------------------------------------------------------------------------------
+    # runtime parameters
+    def set_parameters(self, **values: float) -> None:
+        """Change runtime parameters by name (:data:`dem_taichi.engine.parameters.
+        TUNABLE_PARAMETERS`: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping)."""
+        self.parameters = self.parameters.tuned(**values)
+
+    def get_parameter(self, name: str) -> float:
+        """The runtime parameter ``name`` (a field of
+        :class:`dem_taichi.engine.parameters.EngineParameters`) the kernels integrate with."""
+        if name not in L.PARAMETER_SLOTS:
+            raise KeyError(f"unknown parameter {name!r}; allowed: {', '.join(L.PARAMETER_SLOTS)}")
+        return float(getattr(self.parameters, name))
+
+    @property
+    def time_step(self) -> float:
+        """Δt the kernels integrate with (the runtime parameter; the scene's until
+        :meth:`set_parameters` changes it)."""
+        return self.get_parameter("time_step")
+
+    # ------------------------------------------------------------------------------------------
+    # state and checkpoints (SimulationState)
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Numpy copies of the full state (see :mod:`dem_taichi.engine.state`)."""
+        return self.state_io.get_state(self.step, self.reference_lengths)
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore a state from :meth:`get_state` (same scene and precision)."""
+        restored = self.state_io.restore(state)
+        self.step, self.reference_lengths = restored.step, restored.reference_lengths
+        self._rates = restored.rates
+
+    def set_strain_reference(self) -> None:
+        """Take the current cell as L0 of the logarithmic strains."""
+        self.reference_lengths = self.cell_lengths.astype(np.float64)
+
+    def save_checkpoint(self, path: str | Path) -> Path:
+        """Write the full state and the scene to ``path`` (``.npz``) atomically."""
+        from dem_taichi.io.checkpoint import save_checkpoint
+
+        meta = checkpoint_meta(
+            self.scene, self.precision, self.arch, self.execution, self.deterministic,
+            self._stage, self.step,
+        )  # fmt: skip
+        return save_checkpoint(path, self.get_state(), meta)
+
+    @classmethod
+    def from_checkpoint(
+        cls, path: str | Path, arch: str | None = None, precision: str | None = None
+    ) -> Self:
+        """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
+        from dem_taichi.io.checkpoint import load_checkpoint
+
+        arrays, meta = load_checkpoint(path)
+        scene, arguments = checkpoint_start(arrays, meta, arch, precision)
+        sim = cls(scene, **arguments)
+        sim.set_state(arrays)
+        sim._stage = meta.get("stage", "other")
+        return sim
+
+    # ------------------------------------------------------------------------------------------
+    # what the simulation reports (SimulationViews)
+    @property
+    def cell_lengths(self) -> np.ndarray:
+        """Cell lengths (L_x, L_y), length."""
+        return self.views.cell_lengths
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the start, time."""
+        return self.views.time
+
+    def body_positions(self) -> np.ndarray:
+        """Body centroids (n_bodies, 2) wrapped into the cell [0, L)."""
+        return self.views.body_positions()
+
+    def body_angles(self) -> np.ndarray:
+        """Body angles (n_bodies,), radian."""
+        return self.views.body_angles()
+
+    def rod_positions(self) -> np.ndarray:
+        """Rod centroids (N, 2) wrapped into the cell (bonded rods: mean of the discs)."""
+        return self.views.rod_positions()
+
+    def rod_angles(self) -> np.ndarray:
+        """Rod angles θ (N,), radian (bonded rods: of the end-to-end vector)."""
+        return self.views.rod_angles()
+
+    def disc_positions(self) -> np.ndarray:
+        """Disc centres (M, 2), rod-major; not wrapped."""
+        return self.views.disc_positions()
+
+    @property
+    def n_broken_bonds(self) -> int:
+        """Bonds broken so far (0 for rigid rods)."""
+        return self.views.n_broken_bonds
+
+    @property
+    def history_variables(self):
+        """The history file's variables for this simulation (bonded rods add theirs)."""
+        return self.views.history_variables
+
+    def measure(self) -> BondedMeasures:
+        """History measures (names of ``dem_taichi.io.schema``) now; see the module docstring."""
+        return self.views.measure(self.step, self.reference_lengths, self._rates, self._stage)
+
+    def stress(self) -> np.ndarray:
+        """Stress tensor (2, 2), compression positive, from the current forces."""
+        return self.views.stress()
+
+    def total_energy(self) -> float:
+        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
+        return self.views.total_energy(self.measure())
+
+    def snapshot(self) -> NetworkSnapshot:
+        """The interacting network (:class:`dem_taichi.physics.snapshot.NetworkSnapshot`)."""
+        return self.views.snapshot()
 
     def _upload_gas(self, gas: GasState) -> None:
         cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
@@ -401,9 +475,8 @@ class Simulation(SimulationViews, SimulationState):
     # stepping
     def _set_rates(self, rates: np.ndarray) -> None:
         self._rates = np.asarray(rates, dtype=float)
-        params = self.a["params"].to_numpy()
-        params[L.P_RATE_X], params[L.P_RATE_Y] = self._rates
-        self.a["params"].from_numpy(params)
+        rate_x, rate_y = self._rates
+        self.parameters = self.parameters.with_changes(rate_x=rate_x, rate_y=rate_y)
 
     def _start_fire(self) -> None:
         """Set the FIRE array for a new minimisation (:mod:`dem_taichi.kernels.fire`): the

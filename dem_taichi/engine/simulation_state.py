@@ -1,39 +1,32 @@
-"""The state of a :class:`dem_taichi.engine.simulation.Simulation`: copies, restores, runtime
-parameters and checkpoints (a base class of ``Simulation``).
+"""The state of a :class:`dem_taichi.engine.simulation.Simulation`: copies, restores and
+checkpoints (an object the simulation holds, ``sim.state_io``, built on its device arrays).
 
-``get_state()``/``set_state()`` copy and restore every state array of
-:data:`dem_taichi.engine.device_arrays.DEVICE_ARRAYS` (a restored state continues bit for bit;
-states written before the bonded-rod model are upgraded by
-:func:`dem_taichi.engine.state.upgrade_state`); ``set_parameters`` changes the runtime parameters
-without recompiling; ``save_checkpoint`` and ``from_checkpoint`` write and read the state with the
-scene (:mod:`dem_taichi.io.checkpoint`).
+:meth:`SimulationState.get_state` and :meth:`SimulationState.restore` copy and restore every state
+array of :data:`dem_taichi.engine.device_arrays.DEVICE_ARRAYS` (a restored state continues bit for
+bit; states written before the bonded-rod model are upgraded by
+:func:`dem_taichi.engine.state.upgrade_state`); what the simulation keeps beside its arrays (the
+step, the strain reference, the rates) goes in as arguments and comes back as a
+:class:`RestoredState`. :func:`checkpoint_meta` and :func:`checkpoint_start` are the two ends of a
+checkpoint with its scene (:mod:`dem_taichi.io.checkpoint`); the simulation's
+``save_checkpoint``/``from_checkpoint`` call them.
 """
 
 from __future__ import annotations
 
-import math
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Self
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from dem_taichi.engine.device_arrays import STATE_ARRAYS
+from dem_taichi.engine.parameters import EngineParameters, Physics
 from dem_taichi.engine.state import convert_neighbour_list, fit_rolling_spring, upgrade_state
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.scene.geometry import GasState, RodGeometry
 
-__all__ = ["SimulationState"]
-
-_PARAMETER_INDEX = {
-    "time_step": L.P_DT,
-    "k_n": L.P_KN,
-    "gamma_n": L.P_GN,
-    "k_t": L.P_KT,
-    "gamma_t": L.P_GT,
-    "mu": L.P_MU,
-    "local_damping": L.P_ALPHA,
-}
+__all__ = ["RestoredState", "SimulationState", "checkpoint_meta", "checkpoint_start"]
 
 #: (device array, state key) of every state array, in the order of the state dict (a state
 #: array always has its key: DeviceArray checks it).
@@ -42,164 +35,146 @@ _STATE_KEYS: tuple[tuple[str, str], ...] = tuple(
 )
 
 
-class SimulationState:
-    """State, parameters and checkpoints of a simulation (mixed into :class:`Simulation`)."""
+@dataclass(frozen=True)
+class RestoredState:
+    """What a restored state sets beside the device arrays: the ``step``, the cell's
+    ``reference_lengths`` of the logarithmic strains (length) and the strain ``rates`` (1/time)."""
 
-    # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
-    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
-    # not named here: engine imports this module.
-    scene: Scene
-    arch: str
-    precision: str
-    execution: str
-    deterministic: bool
-    a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
-    body: RodGeometry
-    physics: Any
-    full_list: bool
-    n_rods: int
-    n_discs: int
-    n_bodies: int
-    capacity: int
     step: int
     reference_lengths: np.ndarray
-    _real: type[np.floating]
-    _rates: np.ndarray
-    _stage: str
-    if TYPE_CHECKING:
-        # Simulation's constructor and methods, and SimulationViews' cell lengths
+    rates: np.ndarray
 
-        def __init__(
-            self,
-            scene: Scene,
-            arch: str = "cpu",
-            precision: str = "f64",
-            deterministic: bool = False,
-            execution: str | None = None,
-            initial: GasState | None = None,
-            neighbour_capacity: int | None = None,
-        ) -> None: ...
 
-        def _launch(self, kernel: Any, **scalars: Any) -> None: ...
+class SimulationState:
+    """Copies and restores of a simulation's state arrays.
 
-        def _grow(self, capacity: int) -> None: ...
+    ``arrays``: the simulation's device arrays by name (the dict itself); ``launch(kernel,
+    **scalars)`` calls a kernel with its arrays; ``grow(capacity)`` grows the neighbour-list
+    arrays; ``rod_model`` (the scene's, for messages), ``body`` (the engine's bodies),
+    ``physics``, ``full_list`` (a full neighbour list), ``n_rods``, ``n_discs``, ``n_bodies`` and
+    the numpy ``real`` type as the simulation has them.
+    """
 
-        @property
-        def cell_lengths(self) -> np.ndarray: ...
+    def __init__(
+        self,
+        arrays: dict[str, Any],
+        launch: Callable[..., None],
+        grow: Callable[[int], None],
+        rod_model: str,
+        body: RodGeometry,
+        physics: Physics,
+        full_list: bool,
+        n_rods: int,
+        n_discs: int,
+        n_bodies: int,
+        real: type[np.floating],
+    ) -> None:
+        self.a = arrays
+        self._launch = launch
+        self._grow = grow
+        self.rod_model = rod_model
+        self.body = body
+        self.physics = physics
+        self.full_list = full_list
+        self.n_rods, self.n_discs, self.n_bodies = n_rods, n_discs, n_bodies
+        self._real = real
 
-    def get_state(self) -> dict[str, np.ndarray]:
-        """Numpy copies of the full state (see :mod:`dem_taichi.engine.state`)."""
+    def get_state(self, step: int, reference_lengths: np.ndarray) -> dict[str, np.ndarray]:
+        """Numpy copies of the full state at ``step`` with the strain ``reference_lengths``
+        (see :mod:`dem_taichi.engine.state`)."""
         state = {key: self.a[name].to_numpy() for name, key in _STATE_KEYS}
         return state | {
-            "reference_lengths": self.reference_lengths.copy(),
-            "step": np.array(self.step, dtype=np.int64),
+            "reference_lengths": reference_lengths.copy(),
+            "step": np.array(step, dtype=np.int64),
             "full_list": np.array(self.full_list),
         }
 
-    def set_state(self, state: dict[str, np.ndarray]) -> None:
-        """Restore a state from :meth:`get_state` (same scene and precision)."""
+    def restore(self, state: dict[str, np.ndarray]) -> RestoredState:
+        """Restore a state from :meth:`get_state` (same scene and precision) into the arrays;
+        returns the step, strain reference and rates it carries."""
         n, m = self.n_bodies, self.n_discs
         if state["angle"].shape != (n,) or state["neighbours"].shape[0] != m:
             raise ValueError(
                 f"state of {state['angle'].shape[0]} bodies does not fit this simulation ({n} "
-                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
+                f"bodies: {self.n_rods} {self.rod_model} rods)"
             )
         if state["angle"].dtype != self._real:
             raise ValueError(
                 f"state precision {state['angle'].dtype} differs from the simulation's "
                 f"{np.dtype(self._real)}"
             )
+        capacity_now = self.a["nbr"].shape[1]
         state = upgrade_state(state, n, self.a["params"].to_numpy())
-        state = convert_neighbour_list(state, self.full_list, self.capacity)
+        state = convert_neighbour_list(state, self.full_list, capacity_now)
         state = fit_rolling_spring(state, self.physics.rolling)
         capacity = state["neighbours"].shape[1]
-        if capacity != self.capacity:
+        if capacity != capacity_now:
             self._grow(capacity)
         a = self.a
         for name, key in _STATE_KEYS:
             a[name].from_numpy(np.ascontiguousarray(state[key]))
-        self.reference_lengths = np.array(state["reference_lengths"], dtype=np.float64)
-        self.step = int(state["step"])
-        params = state["params"]
-        self._rates = np.array([params[L.P_RATE_X], params[L.P_RATE_Y]], dtype=float)
+        params = EngineParameters.from_vector(state["params"])
+        restored = RestoredState(
+            step=int(state["step"]),
+            reference_lengths=np.array(state["reference_lengths"], dtype=np.float64),
+            rates=np.array([params.rate_x, params.rate_y], dtype=float),
+        )
         # disc positions are derived: recompute them from the centroids
         from dem_taichi.kernels.common import place_all_discs
 
         self._launch(place_all_discs, ns=self.body.n_spheres)
+        return restored
 
-    def set_parameters(self, **values: float) -> None:
-        """Change runtime parameters: time_step, k_n, gamma_n, k_t, gamma_t, mu, local_damping."""
-        params = self.a["params"].to_numpy()
-        for name, value in values.items():
-            if name not in _PARAMETER_INDEX:
-                raise ValueError(
-                    f"unknown parameter {name!r}; allowed: {', '.join(sorted(_PARAMETER_INDEX))}"
-                )
-            if not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} = {value!r} must be finite and >= 0")
-            params[_PARAMETER_INDEX[name]] = value
-        self.a["params"].from_numpy(params)
 
-    def get_parameter(self, name: str) -> float:
-        return float(self.a["params"].to_numpy()[_PARAMETER_INDEX[name]])
+def checkpoint_meta(
+    scene: Scene,
+    precision: str,
+    arch: str,
+    execution: str,
+    deterministic: bool,
+    stage: str,
+    step: int,
+) -> dict[str, Any]:
+    """The JSON metadata of a checkpoint: the scene's TOML, how the simulation ran, its stage and
+    step (what :func:`checkpoint_start` reads back)."""
+    return {
+        "scene_toml": scene_to_toml(scene),
+        "precision": precision,
+        "arch": arch,
+        "execution": execution,
+        "deterministic": deterministic,
+        "stage": stage,
+        "step": int(step),
+    }
 
-    @property
-    def time_step(self) -> float:
-        """Δt the kernels integrate with (the runtime parameter; the scene's until
-        :meth:`set_parameters` changes it)."""
-        return self.get_parameter("time_step")
 
-    def set_strain_reference(self) -> None:
-        """Take the current cell as L0 of the logarithmic strains."""
-        self.reference_lengths = self.cell_lengths.astype(np.float64)
-
-    def save_checkpoint(self, path: str | Path) -> Path:
-        """Write the full state and the scene to ``path`` (``.npz``) atomically."""
-        from dem_taichi.io.checkpoint import save_checkpoint
-
-        meta = {
-            "scene_toml": scene_to_toml(self.scene),
-            "precision": self.precision,
-            "arch": self.arch,
-            "execution": self.execution,
-            "deterministic": self.deterministic,
-            "stage": self._stage,
-            "step": int(self.step),
-        }
-        return save_checkpoint(path, self.get_state(), meta)
-
-    @classmethod
-    def from_checkpoint(
-        cls, path: str | Path, arch: str | None = None, precision: str | None = None
-    ) -> Self:
-        """A simulation continuing exactly from a checkpoint written by :meth:`save_checkpoint`."""
-        from dem_taichi.io.checkpoint import load_checkpoint
-
-        arrays, meta = load_checkpoint(path)
-        scene = scene_from_toml(meta["scene_toml"])
-        precision = precision or meta["precision"]
-        if precision != meta["precision"]:
-            raise ValueError(
-                f"checkpoint precision {meta['precision']} cannot be resumed as {precision}"
-            )
-        lengths = arrays["cell"][[L.C_LX, L.C_LY]].astype(float)
-        reduced = arrays["reduced_position"].astype(float)
-        gas = GasState(
-            lengths,
-            (reduced - np.floor(reduced)) * lengths,
-            arrays["angle"].astype(float),
-            arrays["velocity"].astype(float),
-            arrays["angular_velocity"].astype(float),
+def checkpoint_start(
+    arrays: dict[str, np.ndarray], meta: dict[str, Any], arch: str | None, precision: str | None
+) -> tuple[Scene, dict[str, Any]]:
+    """The scene of a checkpoint (``arrays``, ``meta``: :func:`dem_taichi.io.checkpoint.
+    load_checkpoint`) and the keyword arguments of the ``Simulation`` that continues it: ``arch``
+    and ``precision`` (None: the checkpoint's; a precision other than the checkpoint's is
+    refused), its execution, the gas of its bodies and its list capacity."""
+    scene = scene_from_toml(meta["scene_toml"])
+    precision = precision or meta["precision"]
+    if precision != meta["precision"]:
+        raise ValueError(
+            f"checkpoint precision {meta['precision']} cannot be resumed as {precision}"
         )
-        sim = cls(
-            scene,
-            arch=arch or meta["arch"],
-            precision=precision,
-            deterministic=bool(meta.get("deterministic", False)),
-            execution=meta.get("execution"),
-            initial=gas,
-            neighbour_capacity=arrays["neighbours"].shape[1],
-        )
-        sim.set_state(arrays)
-        sim._stage = meta.get("stage", "other")
-        return sim
+    lengths = arrays["cell"][[L.C_LX, L.C_LY]].astype(float)
+    reduced = arrays["reduced_position"].astype(float)
+    gas = GasState(
+        lengths,
+        (reduced - np.floor(reduced)) * lengths,
+        arrays["angle"].astype(float),
+        arrays["velocity"].astype(float),
+        arrays["angular_velocity"].astype(float),
+    )
+    return scene, {
+        "arch": arch or meta["arch"],
+        "precision": precision,
+        "deterministic": bool(meta.get("deterministic", False)),
+        "execution": meta.get("execution"),
+        "initial": gas,
+        "neighbour_capacity": arrays["neighbours"].shape[1],
+    }

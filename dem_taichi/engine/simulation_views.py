@@ -1,6 +1,8 @@
 """What a :class:`dem_taichi.engine.simulation.Simulation` reports: the history measures, the rods
-of either model, the interaction network (a base class of ``Simulation``; numpy and the measure
-kernel, no state of its own).
+of either model, the interaction network (an object the simulation holds, ``sim.views``, built on
+its device arrays; numpy and the measure kernel, no state of its own: what changes as the run goes
+— the step, the strain reference, the rates, the stage — is passed to :meth:`SimulationViews.
+measure`).
 
 ``measure()`` is the history record (:class:`dem_taichi.engine.measures.Measures`; bonded rods add
 :data:`dem_taichi.io.history_schema.BONDED_HISTORY_VARIABLES`); ``rod_positions()`` and
@@ -13,45 +15,61 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from dem_taichi.engine.measures import BondedMeasures, history_record
 from dem_taichi.engine.network import interacting_entries, mechanical_coordination, network_snapshot
+from dem_taichi.engine.parameters import EngineParameters, Physics
 from dem_taichi.kernels import layout as L
 from dem_taichi.physics.bonds import rod_axes, unwrapped_chains
 from dem_taichi.physics.snapshot import NetworkSnapshot
-from dem_taichi.scene.config import Scene
-from dem_taichi.scene.geometry import RodGeometry, species_parameters
+from dem_taichi.scene.geometry import RodGeometry
 
 __all__ = ["SimulationViews"]
 
 
 class SimulationViews:
-    """Measures, rods and network of a simulation (mixed into :class:`Simulation`)."""
+    """Measures, rods and network of a simulation, read from its device arrays.
 
-    # What this base reads of the simulation, set by ``Simulation.__init__`` (declared for the
-    # type checker only: annotations make no attribute). ``physics`` is an ``engine.Physics``,
-    # not named here: engine imports this module.
-    scene: Scene
-    a: dict[str, Any]  # the device arrays (Taichi ndarrays) by name
-    geometry: RodGeometry
-    body: RodGeometry
-    physics: Any
-    bonded: bool
-    full_list: bool
-    n_rods: int
-    n_bodies: int
-    capacity: int
-    step: int
-    reference_lengths: np.ndarray
-    timings: dict[str, float]
-    _rates: np.ndarray
-    _stage: str
-    if TYPE_CHECKING:
+    ``arrays``: the simulation's device arrays by name (the dict itself: a capacity growth
+    replaces arrays in it); ``launch(kernel, **scalars)`` calls a kernel with its arrays;
+    ``species`` (charge, F_max, k_a of each place in the rod), ``geometry`` (the rod's), ``body``
+    (the engine's bodies), ``physics``, ``full_list`` (a full neighbour list), ``n_rods`` and
+    ``n_bodies`` as the simulation has them; ``timings``: the simulation's seconds by kind, to
+    which the measure kernel's are added.
+    """
 
-        def _launch(self, kernel: Callable[..., Any], **scalars: Any) -> None: ...
+    def __init__(
+        self,
+        arrays: dict[str, Any],
+        launch: Callable[..., None],
+        species: tuple[np.ndarray, np.ndarray, np.ndarray],
+        geometry: RodGeometry,
+        body: RodGeometry,
+        physics: Physics,
+        full_list: bool,
+        n_rods: int,
+        n_bodies: int,
+        timings: dict[str, float],
+    ) -> None:
+        self.a = arrays
+        self._launch = launch
+        self.species = species
+        self.geometry = geometry
+        self.body = body
+        self.physics = physics
+        self.bonded = physics.bonded
+        self.full_list = full_list
+        self.n_rods = n_rods
+        self.n_bodies = n_bodies
+        self.timings = timings
+
+    @property
+    def parameters(self) -> EngineParameters:
+        """The runtime parameters in the device array ``params``."""
+        return EngineParameters.from_vector(self.a["params"].to_numpy())
 
     def _measure_sums(self) -> np.ndarray:
         from dem_taichi.kernels.measures import measure_sums
@@ -117,8 +135,12 @@ class SimulationViews:
 
         return HISTORY_VARIABLES + (BONDED_HISTORY_VARIABLES if self.bonded else ())
 
-    def measure(self) -> BondedMeasures:
-        """History measures (names of ``dem_taichi.io.schema``); see the module docstring."""
+    def measure(
+        self, step: int, reference_lengths: np.ndarray, rates: np.ndarray, stage: str
+    ) -> BondedMeasures:
+        """History measures (names of ``dem_taichi.io.schema``) at ``step``, the logarithmic
+        strains from the cell ``reference_lengths``, the cell's strain ``rates`` (1/time) and the
+        protocol ``stage``; see the module docstring."""
         from dem_taichi.io.schema import stage_code
 
         sums = self._measure_sums()
@@ -127,14 +149,14 @@ class SimulationViews:
             sums,
             self._stress_tensor(sums),
             self.cell_lengths,
-            self.reference_lengths,
-            self._rates,
+            reference_lengths,
+            rates,
             self.rod_angles(),
             self.geometry,
             self.n_rods,
-            self.step,
+            step,
             self.time,
-            stage_code(self._stage),
+            stage_code(stage),
             self._mechanical_coordination(),
             n_bodies=self.n_bodies,
             n_bonds=n_bonds - int(round(sums[L.M_BROKEN])),
@@ -148,9 +170,10 @@ class SimulationViews:
         """Stress tensor (2, 2), compression positive, from the current forces."""
         return self._stress_tensor()
 
-    def total_energy(self) -> float:
-        """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
-        m = self.measure()
+    @staticmethod
+    def total_energy(m: BondedMeasures) -> float:
+        """Kinetic + contact + long-range (+ bond) energy of the measures ``m`` (for conservation
+        checks)."""
         bonds = m.get("bond_energy", 0.0)
         return m["kinetic_energy"] + m["contact_energy"] + m["long_range_energy"] + bonds
 
@@ -159,7 +182,8 @@ class SimulationViews:
         """(disc i, list slot k, packed entry, flag bits) of every interacting list entry."""
         a = self.a
         counts, bits = a["nbr_count"].to_numpy(), a["pair_flags"].to_numpy()
-        return interacting_entries(counts, bits, a["nbr"].to_numpy(), self.capacity)
+        neighbours = a["nbr"].to_numpy()  # (discs, capacity): the capacity as grown so far
+        return interacting_entries(counts, bits, neighbours, neighbours.shape[1])
 
     def _mechanical_coordination(self) -> float:
         i, _, packed, bits = self._contact_pairs()
@@ -181,15 +205,15 @@ class SimulationViews:
         from dem_taichi.physics.snapshot import BondNetwork
 
         g = chain_bonds(self.n_rods, self.geometry.n_spheres)
-        params = self.a["params"].to_numpy().astype(float)
+        params = self.parameters
         return BondNetwork(
             chain=self.geometry.n_spheres,
             g=g,
             intact=self.a["bond_intact"].to_numpy()[g] == 1,
-            rest_length=float(params[L.P_SPACING]),
-            k_n=float(params[L.P_BOND_KN]),
-            k_t=float(params[L.P_BOND_KT]),
-            k_b=float(params[L.P_BOND_KB]),
+            rest_length=params.spacing,
+            k_n=params.bond_k_n,
+            k_t=params.bond_k_t,
+            k_b=params.bond_k_b,
         )
 
     def snapshot(self) -> NetworkSnapshot:
@@ -203,8 +227,8 @@ class SimulationViews:
             self._snapshot_positions(),
             self.body_angles(),
             self.body,
-            species_parameters(self.scene),
-            self.a["params"].to_numpy().astype(float),
+            (self.species[0].copy(), self.species[1].copy(), self.species[2].copy()),
+            self.parameters,
             self.physics.vdw,
             bonds=self._bond_network() if self.bonded else None,
             rolling_springs=(

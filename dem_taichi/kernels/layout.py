@@ -1,6 +1,8 @@
 """Index constants of the small arrays passed to the kernels (plain Python, no Taichi).
 
-``params`` (real): runtime physical/numerical parameters — changing them never recompiles.
+``params`` (real): runtime physical/numerical parameters — changing them never recompiles; its
+slots are generated from :data:`PARAMETER_SLOTS` (the engine's typed view of them:
+:class:`dem_taichi.engine.parameters.EngineParameters`).
 ``cell`` (real): cell lengths, lengths at the last list build, time, list-displacement trackers.
 ``flags`` (int32): control and error flags set by kernels and read by the host.
 ``measures`` (real): sums accumulated by the measure kernel.
@@ -10,40 +12,86 @@ Neighbour entries pack disc j with its periodic image (``IMAGE_*``, helpers for 
 """
 
 # params ---------------------------------------------------------------------------------------
-P_DT = 0  # time step Δt
-P_KN = 1  # normal stiffness k_n
-P_GN = 2  # normal damping γ_n
-P_KT = 3  # tangential stiffness k_t
-P_GT = 4  # tangential damping γ_t
-P_MU = 5  # Coulomb friction μ
-P_ALPHA = 6  # local non-viscous damping α
-P_MASS = 7  # rod mass M
-P_INERTIA = 8  # rod moment of inertia I
-P_DIAM = 9  # disc diameter d
-P_RLIST = 10  # list radius: interaction cut-off + skin (centre distance)
-P_SKIN = 11  # Verlet skin
-P_VDW_F = 12  # van der Waals F_w
-P_VDW_K = 13  # van der Waals k_w
-P_RATE_X = 14  # cell strain rate along x, compression positive (ε̇_xx = −L̇_x/L_x)
-P_RATE_Y = 15  # same along y
-P_MAX_OFFSET = 16  # max |o_s| of a disc from its rod centroid
-P_MAX_OVERLAP = 17  # blow-up bound on δ (absolute)
-P_REACH = 18  # bound on the centroid branch vector of a listed pair (rod length + list radius)
-P_CUT = 19  # interaction cut-off (centre distance): d, or d + max range of the long-range laws
-# bonded rods (docs/science/dem-model.md §1.7; unused by rigid rods)
-P_SPACING = 20  # bond rest length s_0 (the rods' centre spacing)
-P_BOND_KN = 21  # bond stretch stiffness k_bn
-P_BOND_KT = 22  # bond shear stiffness k_bt
-P_BOND_KB = 23  # bond bending stiffness κ_b
-P_BOND_GN = 24  # bond stretch damping γ_bn
-P_BOND_GT = 25  # bond shear damping γ_bt
-P_BOND_GB = 26  # bond bending damping γ_bb
-P_BOND_BREAK = 27  # breakage tension F_b (≤ 0: unbreakable)
-# rolling resistance at inter-rod contacts (dem_taichi.physics.rolling; unused without it)
-P_ROLL_K = 28  # κ_r = k_r d_eff², moment per radian of the rolling spring ψ
-P_ROLL_G = 29  # η_r = γ_r d_eff², moment damping per unit relative rotation rate
-P_ROLL_CAP = 30  # μ_r d_eff: the rolling moment cap per unit contact force
-N_PARAMS = 31
+#: The slots of ``params``, in order: the one table of the runtime parameters. Each name is a
+#: field of :class:`dem_taichi.engine.parameters.EngineParameters` (units and definitions there;
+#: a test checks the two agree one to one); the ``P_*`` constants below are derived from it.
+#: The order is the layout of states and checkpoints: new slots go at the end.
+PARAMETER_SLOTS: tuple[str, ...] = (
+    "time_step",
+    "k_n",
+    "gamma_n",
+    "k_t",
+    "gamma_t",
+    "mu",
+    "local_damping",
+    "mass",
+    "inertia",
+    "diameter",
+    "list_radius",
+    "skin",
+    "vdw_f_max",
+    "vdw_k",
+    "rate_x",
+    "rate_y",
+    "max_offset",
+    "max_overlap",
+    "reach",
+    "cutoff",
+    # bonded rods (docs/science/dem-model.md §1.7; unused by rigid rods)
+    "spacing",
+    "bond_k_n",
+    "bond_k_t",
+    "bond_k_b",
+    "bond_gamma_n",
+    "bond_gamma_t",
+    "bond_gamma_b",
+    "bond_breakage_force",
+    # rolling resistance at inter-rod contacts (dem_taichi.physics.rolling; unused without it)
+    "rolling_stiffness",
+    "rolling_damping",
+    "rolling_cap",
+)
+
+
+def parameter_slot(name):
+    """The index of the runtime parameter ``name`` in ``params`` (a ``ValueError`` for a name
+    not in :data:`PARAMETER_SLOTS`)."""
+    return PARAMETER_SLOTS.index(name)
+
+
+# the slots under the short names the kernels use (compile-time ints)
+P_DT = parameter_slot("time_step")
+P_KN = parameter_slot("k_n")
+P_GN = parameter_slot("gamma_n")
+P_KT = parameter_slot("k_t")
+P_GT = parameter_slot("gamma_t")
+P_MU = parameter_slot("mu")
+P_ALPHA = parameter_slot("local_damping")
+P_MASS = parameter_slot("mass")
+P_INERTIA = parameter_slot("inertia")
+P_DIAM = parameter_slot("diameter")
+P_RLIST = parameter_slot("list_radius")
+P_SKIN = parameter_slot("skin")
+P_VDW_F = parameter_slot("vdw_f_max")
+P_VDW_K = parameter_slot("vdw_k")
+P_RATE_X = parameter_slot("rate_x")
+P_RATE_Y = parameter_slot("rate_y")
+P_MAX_OFFSET = parameter_slot("max_offset")
+P_MAX_OVERLAP = parameter_slot("max_overlap")
+P_REACH = parameter_slot("reach")
+P_CUT = parameter_slot("cutoff")
+P_SPACING = parameter_slot("spacing")
+P_BOND_KN = parameter_slot("bond_k_n")
+P_BOND_KT = parameter_slot("bond_k_t")
+P_BOND_KB = parameter_slot("bond_k_b")
+P_BOND_GN = parameter_slot("bond_gamma_n")
+P_BOND_GT = parameter_slot("bond_gamma_t")
+P_BOND_GB = parameter_slot("bond_gamma_b")
+P_BOND_BREAK = parameter_slot("bond_breakage_force")
+P_ROLL_K = parameter_slot("rolling_stiffness")
+P_ROLL_G = parameter_slot("rolling_damping")
+P_ROLL_CAP = parameter_slot("rolling_cap")
+N_PARAMS = len(PARAMETER_SLOTS)
 
 # cell -----------------------------------------------------------------------------------------
 C_LX = 0
