@@ -23,6 +23,9 @@
 # RRaggv10r's setting (the resampling thermostat: no blow-up), 2 edge + (n - 2) inner discs:
 #   RRn8      8 discs per rod
 #   RRn10     10 discs per rod
+# Then the cluster thermostat (aggregation_thermostat = "clusters": fresh centre-of-mass
+# velocities of the clusters at the temperature, their insides not heated) on RRaggv10's setting:
+#   RRc       rolling resistance, the sparser gas aged 1000 at speed 0.5 by clusters
 # Run from a frozen clone of the commit to measure, one run at a time (2 cores). Then:
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_agitated
 #   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON] [ONLY]
@@ -71,6 +74,10 @@ for seed in 11 2 12; do
     run RRl${tau}_s$seed "${rr[@]}" "${loose[@]}" --set protocol.aggregation_thermostat=langevin \
       --set protocol.aggregation_thermostat_time=$tau --set scene.seed=$seed
   done
+done
+for seed in 11 2 12; do
+  run RRc_s$seed "${rr[@]}" "${loose[@]}" --set protocol.aggregation_thermostat=clusters \
+    --set scene.seed=$seed
 done
 for n in 8 10; do
   for seed in 11 2 12; do

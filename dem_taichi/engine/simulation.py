@@ -361,6 +361,11 @@ class Simulation:
         """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""
         return self.views.total_energy(self.measure())
 
+    def interacting_rod_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rod i, rod j) of every interacting pair of discs on two rods, as the last measure
+        left them (:meth:`SimulationViews.interacting_rod_pairs`)."""
+        return self.views.interacting_rod_pairs()
+
     def snapshot(self) -> NetworkSnapshot:
         """The interacting network (:class:`dem_taichi.physics.snapshot.NetworkSnapshot`)."""
         return self.views.snapshot()

@@ -185,6 +185,17 @@ class SimulationViews:
         neighbours = a["nbr"].to_numpy()  # (discs, capacity): the capacity as grown so far
         return interacting_entries(counts, bits, neighbours, neighbours.shape[1])
 
+    def interacting_rod_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rod i, rod j) of every interacting list entry (a contact or a long-range force)
+        between discs of two different rods, as the last measure left the flags; a pair of rods
+        appears once per interacting pair of their discs."""
+        i, _, packed, _ = self._contact_pairs()
+        ns = self.geometry.n_spheres
+        rod_i = (i // ns).astype(np.int64)
+        rod_j = (packed // L.IMAGE_CODES // ns).astype(np.int64)
+        other = rod_i != rod_j
+        return rod_i[other], rod_j[other]
+
     def _mechanical_coordination(self) -> float:
         i, _, packed, bits = self._contact_pairs()
         return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)

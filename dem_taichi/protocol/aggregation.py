@@ -11,6 +11,7 @@ import math
 import time
 
 from dem_taichi.engine.failures import BlowUpError
+from dem_taichi.protocol.cluster_thermostat import cluster_speed
 from dem_taichi.protocol.quasistatic import (
     apply_strain,
     hold,
@@ -39,7 +40,9 @@ def aggregate(runner) -> dict:
        (:func:`~dem_taichi.protocol.quasistatic.resample_speed`, the default), rescaled by one
        factor (:func:`~dem_taichi.protocol.quasistatic.rescale_speed`) or refreshed in part, keeping
        exp(−Δt/τ) of each velocity over the check interval Δt (:func:`~dem_taichi.
-       quasistatic.refresh_speed`, τ = ``aggregation_thermostat_time``).
+       quasistatic.refresh_speed`, τ = ``aggregation_thermostat_time``) or, by cluster, the
+       clusters' centre-of-mass velocities drawn afresh (:func:`~dem_taichi.protocol.
+       cluster_thermostat.cluster_speed`).
 
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
@@ -49,6 +52,11 @@ def aggregate(runner) -> dict:
     stage = "aggregation"
     if not c.aggregates:
         raise ProtocolError("[protocol] aggregation = 'none': there is no aggregation stage")
+    if c.aggregation_speed is not None and c.aggregation_thermostat == "clusters" and sim.bonded:
+        raise ProtocolError(
+            "[protocol] aggregation_thermostat = 'clusters' needs rigid rods: use [particles] "
+            "rod_model = 'rigid', or another aggregation_thermostat"
+        )
     t0 = time.perf_counter()
     record = runner._record(stage)
     every = sim.scene.output.every
@@ -107,6 +115,8 @@ def aggregate(runner) -> dict:
             rescale_speed(sim, speed)
         elif details["thermostat"] == "langevin":
             refresh_speed(sim, speed, seed, keep)
+        elif details["thermostat"] == "clusters":
+            cluster_speed(sim, speed, seed)
         else:
             resample_speed(sim, speed, seed)
 

@@ -55,7 +55,12 @@ without them runs (and writes its TOML and hash) as before.
   temperature is kept on average only where the gas loses little energy over τ, since each
   check puts back 1 − a² of it (measured on an ageing gel at τ = 10: kinetic energy per rod
   0.004 against ≈ 1.4 at the temperature asked);
-  :func:`dem_taichi.protocol.quasistatic.refresh_speed`.
+  :func:`dem_taichi.protocol.quasistatic.refresh_speed`. "clusters": at every check each
+  cluster of rods (joined by a contact or a long-range force) gets a fresh centre-of-mass
+  velocity at the temperature (~N(0, speed²/n_c) per component for n_c rods), its rods' motion
+  relative to it left alone, and a free rod a fresh spin: the clusters move as Brownian wholes
+  and their insides are not heated; rigid rods only;
+  :func:`dem_taichi.protocol.cluster_thermostat.cluster_speed`.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
@@ -153,11 +158,14 @@ AGGREGATION_KEYS: dict[str, dict[str, Any]] = {
             "resample",
             "rescale",
             "langevin",
+            "clusters",
             doc=(
                 "how aggregation_speed is imposed: 'resample' (unset; Andersen: fresh"
                 " Maxwell velocities at every check), 'rescale' (one factor for the"
-                " whole gas) or 'langevin' (a partial refresh at every check: the"
-                " velocities keep their memory over aggregation_thermostat_time)"
+                " whole gas), 'langevin' (a partial refresh at every check: the"
+                " velocities keep their memory over aggregation_thermostat_time) or"
+                " 'clusters' (fresh centre-of-mass velocities of the clusters of rods,"
+                " their insides left alone; rigid rods)"
             ),
         ),
         "optional": True,

@@ -107,6 +107,7 @@ def test_rescale_speed_sets_the_rms_velocity_component():
         ("resample", "resample_speed"),
         ("rescale", "rescale_speed"),
         ("langevin", "refresh_speed"),
+        ("clusters", "cluster_speed"),
     ],
 )
 def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermostat, function):
@@ -578,3 +579,95 @@ def test_a_blow_up_under_the_rescaling_thermostat_names_it(monkeypatch, thermost
     assert message.startswith("runaway kinetic energy at step 1")
     assert ("aggregation_thermostat = 'resample'" in message) == (thermostat == "rescale")
     assert "\n" not in message
+
+
+def test_cluster_labels_are_the_connected_components_of_the_rod_pairs():
+    """Rods 0-1-2 (through 1), 3-4 and the free rods 5 and 6: three clusters of sizes 3, 2, 1,
+    1; repeated pairs and either order change nothing."""
+    from dem_taichi.protocol.cluster_thermostat import cluster_labels
+
+    labels = cluster_labels(7, np.array([0, 2, 4, 1, 3]), np.array([1, 1, 3, 0, 4]))
+    assert labels[0] == labels[1] == labels[2]
+    assert labels[3] == labels[4] != labels[0]
+    assert len({labels[5], labels[6], labels[0], labels[3]}) == 4
+    assert sorted(np.bincount(labels)) == [1, 1, 2, 3]
+    assert cluster_labels(3, np.array([], int), np.array([], int)).tolist() == [0, 1, 2]
+
+
+def test_cluster_velocities_replace_the_centres_and_keep_the_insides():
+    """v_i − V_c is unchanged for every rod; the new centre-of-mass velocities are the draw
+    written out (N(0, s²/n_c) per component, in cluster order, the mass-weighted mean removed),
+    so the total momentum is zero; a cluster's rods keep their relative motion exactly."""
+    from dem_taichi.protocol.cluster_thermostat import cluster_velocities
+
+    rng = np.random.default_rng(3)
+    velocity = rng.normal(0.0, 1.0, size=(6, 2))
+    labels = np.array([0, 0, 0, 1, 1, 2])
+    new, fresh = cluster_velocities(velocity, labels, 0.4, np.random.default_rng(11))
+    sizes = np.array([3.0, 2.0, 1.0])
+    drawn = (
+        np.random.default_rng(11).normal(0.0, 1.0, size=(3, 2)) * (0.4 / np.sqrt(sizes))[:, None]
+    )
+    drawn -= (sizes[:, None] * drawn).sum(axis=0) / sizes.sum()
+    np.testing.assert_allclose(fresh, drawn, rtol=0, atol=1e-15)
+    for c in range(3):
+        rods = labels == c
+        np.testing.assert_allclose(new[rods].mean(axis=0), drawn[c], atol=1e-14)
+        np.testing.assert_allclose(
+            new[rods] - new[rods].mean(axis=0),
+            velocity[rods] - velocity[rods].mean(axis=0),
+            atol=1e-14,
+        )
+    np.testing.assert_allclose(new.sum(axis=0), 0.0, atol=1e-14)
+
+
+def test_cluster_speed_on_a_simulation_is_seeded_and_refuses_bonded_rods():
+    """On the attractive smoke gas: the same seed and step give the same velocities, another seed
+    others; the rms speed of a gas of free rods comes out near the one asked (every rod its own
+    cluster); bonded rods are refused with a one-line reason."""
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.cluster_thermostat import cluster_labels, cluster_speed
+
+    sim = Simulation(attractive_scene())
+    sim.measure()  # the pair flags the thermostat reads
+    start = sim.get_state()
+    cluster_speed(sim, 0.3, 7)
+    first = sim.get_state()
+    sim.set_state(start)
+    sim.measure()
+    cluster_speed(sim, 0.3, 7)
+    np.testing.assert_array_equal(sim.get_state()["velocity"], first["velocity"])
+    np.testing.assert_array_equal(sim.get_state()["angular_velocity"], first["angular_velocity"])
+    sim.set_state(start)
+    sim.measure()
+    cluster_speed(sim, 0.3, 8)
+    assert not np.array_equal(sim.get_state()["velocity"], first["velocity"])
+    labels = cluster_labels(sim.n_rods, *sim.interacting_rod_pairs())
+    n_clusters = int(labels.max()) + 1
+    # sum over clusters of n_c |U_c|² ≈ 2 s² per cluster (equipartition), minus the momentum
+    centre = np.array([first["velocity"][labels == c].mean(axis=0) for c in range(n_clusters)])
+    sizes = np.bincount(labels)
+    energy = float((sizes[:, None] * centre**2).sum()) / n_clusters
+    assert 0.3 * 2 * 0.09 < energy < 3.0 * 2 * 0.09
+    bonded = Simulation(load_scene("smoke_bonded"))
+    with pytest.raises(ValueError, match="needs rigid rods"):
+        cluster_speed(bonded, 0.3, 7)
+
+
+def test_the_cluster_thermostat_refuses_bonded_rods_before_the_stage_runs():
+    """A bonded scene asking for aggregation_thermostat = 'clusters' stops at the start of the
+    stage with one line naming the keys, before any step."""
+    from dem_taichi.protocol.records import ProtocolError
+
+    base = load_scene("smoke_bonded").replace(long_range=ATTRACTIVE)
+    config = dataclasses.replace(
+        protocol_settings(base),
+        aggregation="time",
+        aggregation_time=1.0,
+        aggregation_speed=0.2,
+        aggregation_thermostat="clusters",
+    )
+    extensions = {"protocol": config, "probing": ProbingConfig(enabled=False)}
+    scene = dataclasses.replace(base, extensions=MappingProxyType(extensions), source_text="")
+    with pytest.raises(ProtocolError, match="needs rigid rods: use \\[particles\\] rod_model"):
+        run_stage(scene)
