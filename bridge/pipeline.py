@@ -23,7 +23,7 @@ calibration wrote (:mod:`bridge.outputs`): an earlier calibration's files that a
 again (a ``prediction_radial_2.nc`` when there is one radial path now) are deleted, and nothing
 else. The command line refuses an ``--out`` holding an earlier calibration unless
 ``--overwrite``, a DEM run folder as ``--out``, and a symbolic link where it writes (one line,
-exit code 2); a full disk is exit code 4 (:mod:`tiv_model.command_line`).
+exit code 2); a full disk is exit code 4 (:mod:`clay_cli`).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from tiv_model.command_line import (
+from clay_cli import (
     ArgumentParser,
     UsageError,
     add_common_flags,
@@ -628,7 +628,7 @@ def _quiet_say(quiet: bool):
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """``python -m bridge.pipeline`` (also ``python -m bridge calibrate``); returns the exit code
-    (one error handler, :mod:`tiv_model.command_line`: bad input, an ``--out`` holding an
+    (one error handler, :mod:`clay_cli`: bad input, an ``--out`` holding an
     earlier calibration without ``--overwrite`` included, is one line with exit code 2; a
     calibration that cannot run, :class:`CalibrationError`, exit code 1; a full disk
     (ENOSPC/EDQUOT), exit code 4; ``--debug`` shows the traceback)."""

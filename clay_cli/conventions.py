@@ -1,8 +1,10 @@
 """The conventions of the project's command lines: one error handler, the same flags.
 
-Used by ``python -m tiv_model``, ``python -m dem_taichi`` (``run``, ``protocol``) and
-``python -m bridge.pipeline``. Standard library only; it lives in the lowest layer
-(``tiv_model`` imports no other package of the project) so that all three share it.
+Used by ``python -m tiv_model``, ``python -m dem_taichi`` (``run``, ``protocol``, ``sweep``,
+``snapshot``) and ``python -m bridge``. Standard library only, and a package of its own
+(:mod:`clay_cli`) that imports nothing of the project, so that all three packages share it
+without any of them importing another for it. Up to 0.1.0 it was ``tiv_model.command_line``
+(still importable for one release, with a :class:`DeprecationWarning`).
 
 - A user error (a bad option, a bad scene or file, a value out of range: ``ValueError`` and
   ``OSError`` and what an entry point adds) is one line on stderr, ``PROG: error: MESSAGE``,
