@@ -12,8 +12,9 @@ without Taichi. Modules, in the order of the pipeline:
   dimensionless for v and fabric; anything else (or no ``units``) refused naming it;
 - :mod:`bridge.moduli` — the model's elastic moduli at measured states (batched inversion);
 - :mod:`bridge.runs` — model runs along the DEM paths, sampled at the DEM points;
-- :mod:`bridge.calibration` — staged least squares (compressibility λ*, N; elastic k, g, n, r,
-  ω; fabric c, s, z, M) with standard errors and fit quality;
+- :mod:`bridge.calibration` — a subpackage: staged least squares (``fit``: compressibility
+  λ*, N; elastic k, g, n, r, ω; fabric c, s, z, M), its ``options`` and ``result`` (standard
+  errors, fit quality), and what the data determine (``identifiability``: profile likelihoods);
 - :mod:`bridge.predict` — predictions labelled fitted / out of sample (E_h/E_v along K0);
 - :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
 - :mod:`bridge.pipeline` — ``calibrate_from_results`` and ``python -m bridge.pipeline``;

@@ -50,8 +50,8 @@ from clay_cli import (
 from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
+from .calibration.identifiability import identifiability
 from .figures import PANELS, write_figures
-from .identifiability import identifiability
 from .outputs import (
     MANIFEST,
     Outputs,
@@ -92,8 +92,8 @@ class PipelineOptions:
     max_increments: most model increments per predicted path.
     figures: write the figures.
     identifiability: profile likelihoods of the fitted parameters
-        (:mod:`bridge.identifiability`) in ``calibration.json`` (``"identifiability"``), the
-        text report and ``report.md``.
+        (:mod:`bridge.calibration.identifiability`) in ``calibration.json``
+        (``"identifiability"``), the text report and ``report.md``.
     """
 
     stress_scale_kpa: float | None = None

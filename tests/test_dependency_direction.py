@@ -92,6 +92,9 @@ def test_dem_taichi_imports_no_tiv_model_nor_bridge():
 #: the repository imports the old path
 OLD_PATHS = {
     "tiv_model.command_line": "clay_cli",
+    "bridge.calibration_options": "bridge.calibration.options",
+    "bridge.calibration_result": "bridge.calibration.result",
+    "bridge.identifiability": "bridge.calibration.identifiability",
 }
 
 
@@ -100,6 +103,9 @@ def test_no_module_imports_an_old_path():
     for package in (*PROJECT, "tests", "scripts", "benchmarks"):
         for path, names in imported_modules(package).items():
             bad += [f"{path} imports {name}" for name in names if name in OLD_PATHS]
+    for package in PROJECT:  # relative imports too
+        for module, targets in module_imports(package).items():
+            bad += [f"{module} imports {t}" for t in targets if t in OLD_PATHS]
     assert bad == []
 
 

@@ -39,9 +39,9 @@ from scipy.stats import f as f_dist
 from tiv_model.errors import TivModelError
 from tiv_model.params import Parameters
 
-from .calibration import JointStage, build_stages, fit_stage
-from .calibration_options import STAGES, CalibrationError
-from .calibration_result import CalibrationResult
+from .fit import JointStage, build_stages, fit_stage
+from .options import STAGES, CalibrationError
+from .result import CalibrationResult
 
 #: xtol/ftol/gtol of the refits along a profile (Δ needs ~3 digits, not 12)
 PROFILE_TOLERANCE = 1e-8
@@ -351,3 +351,15 @@ def replica_spread(results: Sequence[CalibrationResult]) -> dict[str, dict[str, 
             "n": int(values.size),
         }
     return table
+
+
+__all__ = [
+    "PROFILE_TOLERANCE",
+    "PROFILE_EVALUATIONS",
+    "STATUSES",
+    "Profile",
+    "Identifiability",
+    "profile_parameter",
+    "identifiability",
+    "replica_spread",
+]

@@ -9,7 +9,7 @@ import numpy as np
 
 from tiv_model.params import Parameters
 
-from .calibration_options import UNITS, CalibrationOptions
+from .options import UNITS, CalibrationOptions
 
 
 def covariance_from_jacobian(jac: np.ndarray) -> np.ndarray:
@@ -214,3 +214,10 @@ class CalibrationResult:
             "fitted": [list(p) for p in self.fitted_],
             "warnings": self.warnings(),
         }
+
+
+__all__ = [
+    "covariance_from_jacobian",
+    "StageFit",
+    "CalibrationResult",
+]

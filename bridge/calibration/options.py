@@ -1,4 +1,4 @@
-"""Options of the staged calibration (:mod:`bridge.calibration`): stages, bounds, scales.
+"""Options of the staged calibration (:mod:`bridge.calibration.fit`): stages, bounds, scales.
 
 Parameters are the study's symbols (:data:`tiv_model.params.SYMBOLS`); their units and
 validity ranges come from :data:`tiv_model.params.PARAMETER_INFO`, the search bounds and the
@@ -95,7 +95,7 @@ class CalibrationOptions:
         bound, a third of the model runs of ``"trf"`` for the same cost) or ``"trf"`` (the
         method before issue 12).
     tolerance: xtol and gtol of the least squares (the profiles of
-        :mod:`bridge.identifiability` refit with 1e-8).
+        :mod:`bridge.calibration.identifiability` refit with 1e-8).
     cost_tolerance: ftol, the relative decrease of the cost per step below which a stage
         stops. 1e-8, far below what matters statistically (a change of 1/(m − n) of the cost
         moves a profile by Δ ≈ 1); before issue 12 it was 1e-12 (as were xtol and gtol): in the
@@ -181,3 +181,17 @@ class CalibrationOptions:
         if stage == "fabric" and not self.fit_critical_stress_ratio:
             names = [s for s in names if s != "M"]
         return tuple(names)
+
+
+__all__ = [
+    "STAGES",
+    "STAGE_PARAMETERS",
+    "DEFAULT_BOUNDS",
+    "DEFAULT_SCALES",
+    "FABRIC_SERIES",
+    "ELASTIC_MODULI",
+    "INITIAL_FABRIC",
+    "UNITS",
+    "CalibrationError",
+    "CalibrationOptions",
+]
