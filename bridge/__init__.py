@@ -17,7 +17,8 @@ without Taichi. Modules, in the order of the pipeline:
   errors, fit quality), and what the data determine (``identifiability``: profile likelihoods);
 - :mod:`bridge.predict` — predictions labelled fitted / out of sample (E_h/E_v along K0);
 - :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
-- :mod:`bridge.pipeline` — ``calibrate_from_results`` and ``python -m bridge.pipeline``;
+- :mod:`bridge.pipeline` — ``calibrate_from_results`` (returns a
+  :class:`bridge.pipeline_result.PipelineResult`) and ``python -m bridge.pipeline``;
 - :mod:`bridge.synthetic` — DEM-like results made by the model itself (exact-recovery checks).
 
 Example::
@@ -25,7 +26,7 @@ Example::
     from bridge.pipeline import PipelineOptions, calibrate_from_results
     outcome = calibrate_from_results("run/history.nc", "run/probes.nc", "run/bridge",
                                      PipelineOptions(stress_scale_kpa=1.0))
-    outcome["parameters"], outcome["files"]["report"]
+    outcome.parameters, outcome.report     # a PipelineResult; outcome.to_dict(): JSON
 """
 
 __version__ = "0.1.0"
