@@ -43,8 +43,8 @@ def measure(dem: str, identifiability: bool) -> dict:
     return {
         "stages": {st["name"]: [st["seconds"], st["nfev"]] for st in saved["stages"]},
         "total": total,
-        "calibration": outcome.get("seconds_calibration"),
-        "identifiability": outcome.get("seconds_identifiability"),
+        "calibration": outcome.seconds_calibration,
+        "identifiability": outcome.seconds_identifiability,
         "parameters": saved["parameters"],
     }
 

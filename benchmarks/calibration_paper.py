@@ -50,8 +50,8 @@ def calibrate_runs(runs: list[str], figures: bool) -> dict[str, dict]:
                                          target, {"figures": figures and i == 0})  # fmt: skip
         saved = json.loads((target / "calibration.json").read_text())
         saved["seconds_total"] = time.perf_counter() - t0
-        saved["seconds_calibration"] = outcome.get("seconds_calibration")
-        saved["seconds_identifiability"] = outcome.get("seconds_identifiability")
+        saved["seconds_calibration"] = outcome.seconds_calibration
+        saved["seconds_identifiability"] = outcome.seconds_identifiability
         saved["folder"] = str(target)
         out[name] = saved
         print(f"{name}: {saved['seconds_total']:.1f} s", flush=True)

@@ -12,11 +12,13 @@ without Taichi. Modules, in the order of the pipeline:
   dimensionless for v and fabric; anything else (or no ``units``) refused naming it;
 - :mod:`bridge.moduli` — the model's elastic moduli at measured states (batched inversion);
 - :mod:`bridge.runs` — model runs along the DEM paths, sampled at the DEM points;
-- :mod:`bridge.calibration` — staged least squares (compressibility λ*, N; elastic k, g, n, r,
-  ω; fabric c, s, z, M) with standard errors and fit quality;
+- :mod:`bridge.calibration` — a subpackage: staged least squares (``fit``: compressibility
+  λ*, N; elastic k, g, n, r, ω; fabric c, s, z, M), its ``options`` and ``result`` (standard
+  errors, fit quality), and what the data determine (``identifiability``: profile likelihoods);
 - :mod:`bridge.predict` — predictions labelled fitted / out of sample (E_h/E_v along K0);
 - :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
-- :mod:`bridge.pipeline` — ``calibrate_from_results`` and ``python -m bridge.pipeline``;
+- :mod:`bridge.pipeline` — ``calibrate_from_results`` (returns a
+  :class:`bridge.pipeline_result.PipelineResult`) and ``python -m bridge.pipeline``;
 - :mod:`bridge.synthetic` — DEM-like results made by the model itself (exact-recovery checks).
 
 Example::
@@ -24,7 +26,7 @@ Example::
     from bridge.pipeline import PipelineOptions, calibrate_from_results
     outcome = calibrate_from_results("run/history.nc", "run/probes.nc", "run/bridge",
                                      PipelineOptions(stress_scale_kpa=1.0))
-    outcome["parameters"], outcome["files"]["report"]
+    outcome.parameters, outcome.report     # a PipelineResult; outcome.to_dict(): JSON
 """
 
 __version__ = "0.1.0"

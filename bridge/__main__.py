@@ -1,7 +1,7 @@
 """``python -m bridge calibrate ...`` (the pipeline of :mod:`bridge.pipeline`) and
 ``python -m bridge --version``; the console script ``clay-bridge`` is the same.
 
-Exit codes (:mod:`tiv_model.command_line`): 0 done; 1 the calibration could not run or an
+Exit codes (:mod:`clay_cli`): 0 done; 1 the calibration could not run or an
 internal error; 2 bad input (one line; an ``--out`` holding an earlier calibration is refused
 unless ``--overwrite``, which deletes only the files its ``calibration_files.json`` lists:
 :mod:`bridge.outputs`); 4 disk full (ENOSPC/EDQUOT, one line).

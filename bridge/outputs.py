@@ -242,8 +242,8 @@ def check_out(out_text: str, overwrite: bool) -> Path:
 
 
 def write_netcdf(ds, path: Path) -> Path:
-    """``ds.to_netcdf(path)`` atomically (:func:`tiv_model.command_line.replace_file`: no half
+    """``ds.to_netcdf(path)`` atomically (:func:`clay_cli.replace_file`: no half
     file, netCDF4's "HDF error" on a full disk raised as ``OSError`` ENOSPC)."""
-    from tiv_model.command_line import replace_file
+    from clay_cli import replace_file
 
     return replace_file(path, ds.to_netcdf)

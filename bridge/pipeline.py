@@ -23,7 +23,7 @@ calibration wrote (:mod:`bridge.outputs`): an earlier calibration's files that a
 again (a ``prediction_radial_2.nc`` when there is one radial path now) are deleted, and nothing
 else. The command line refuses an ``--out`` holding an earlier calibration unless
 ``--overwrite``, a DEM run folder as ``--out``, and a symbolic link where it writes (one line,
-exit code 2); a full disk is exit code 4 (:mod:`tiv_model.command_line`).
+exit code 2); a full disk is exit code 4 (:mod:`clay_cli`).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from tiv_model.command_line import (
+from clay_cli import (
     ArgumentParser,
     UsageError,
     add_common_flags,
@@ -50,8 +50,8 @@ from tiv_model.command_line import (
 from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
+from .calibration.identifiability import identifiability
 from .figures import PANELS, write_figures
-from .identifiability import identifiability
 from .outputs import (
     MANIFEST,
     Outputs,
@@ -61,6 +61,7 @@ from .outputs import (
     refuse_links,
     write_netcdf,
 )
+from .pipeline_result import PipelineResult
 from .predict import predict_paths, predict_probes, summary
 from .replicas import calibrate_replicas
 from .report import report_markdown, write_report
@@ -92,8 +93,8 @@ class PipelineOptions:
     max_increments: most model increments per predicted path.
     figures: write the figures.
     identifiability: profile likelihoods of the fitted parameters
-        (:mod:`bridge.identifiability`) in ``calibration.json`` (``"identifiability"``), the
-        text report and ``report.md``.
+        (:mod:`bridge.calibration.identifiability`) in ``calibration.json``
+        (``"identifiability"``), the text report and ``report.md``.
     """
 
     stress_scale_kpa: float | None = None
@@ -187,14 +188,17 @@ def calibrate_from_results(
     out_dir,
     options: PipelineOptions | Mapping | None = None,
     outputs: Outputs | None = None,
-) -> dict:
+) -> PipelineResult:
     """Calibrate on DEM results, predict, draw and report (see the module docstring).
 
     ``options``: :class:`PipelineOptions`, a mapping of its fields (:func:`pipeline_options`)
     or None (defaults). ``probes_path`` may be None: then the elastic stage is skipped (k, g, n,
-    r, ω stay at their starting values, as the report says). Returns a JSON-able dict:
-    ``parameters``, ``standard_errors``, ``fitted``, ``out_of_sample``, ``predictions`` (rows of
-    :func:`bridge.predict.summary`), ``files`` and ``seconds``.
+    r, ω stay at their starting values, as the report says). Returns a
+    :class:`~bridge.pipeline_result.PipelineResult`: ``parameters``, ``standard_errors``,
+    ``fitted``, ``out_of_sample``, ``predictions`` (rows of :func:`bridge.predict.summary`),
+    ``files`` (paths), ``report``, ``seconds``, the ``calibration`` and ``identifiability``
+    objects; ``to_dict()`` is the JSON-able dict of 0.1.0, whose keys the result also reads as
+    a mapping (``outcome["parameters"]``).
 
     ``outputs``: the :class:`bridge.outputs.Outputs` of a command that lists and replaces the
     folder's files itself (the command line); None: this call lists what it writes in
@@ -286,25 +290,9 @@ def calibrate_from_results(
     outputs.path("calibration.txt").write_text(result.report() + "\n" + extra)
     files["calibration_text"] = str(out / "calibration.txt")
     rows = summary(runs) + summary({f"{p} (probes)": ds for p, ds in model_probes.items()})
-    outcome = {
-        "parameters": result.params_.as_symbols(),
-        "standard_errors": {
-            k: (v if math.isfinite(v) else None) for k, v in result.standard_errors_.items()
-        },
-        "fitted": [list(p) for p in result.fitted_],
-        "out_of_sample": sorted(
-            {f"{r['path']}:{r['variable']}" for r in rows if r["role"] == "out_of_sample"}
-        ),
-        "predictions": rows,
-        "data": {k: str(v) for k, v in description.items()},
-        "files": files,
-    }
-    outcome["seconds"] = time.perf_counter() - t0
-    outcome["seconds_calibration"] = seconds_calibration
-    if ide is not None:
-        outcome["identifiability"] = ide.to_dict()
-        outcome["seconds_identifiability"] = ide.seconds
-    calibration = result.to_dict() | {"data": outcome["data"], "predictions": rows}
+    seconds = time.perf_counter() - t0
+    data = {k: str(v) for k, v in description.items()}
+    calibration = result.to_dict() | {"data": data, "predictions": rows}
     if ide is not None:
         calibration["identifiability"] = ide.to_dict()
     outputs.path("calibration.json").write_text(json.dumps(calibration, indent=2, default=str))
@@ -317,7 +305,23 @@ def calibrate_from_results(
         }
         outputs.remove_earlier(keep=inputs)
         files["manifest"] = str(outputs.save(keep=inputs & earlier))
-    return outcome
+    return PipelineResult(
+        parameters=result.params_.as_symbols(),
+        standard_errors={
+            k: (v if math.isfinite(v) else None) for k, v in result.standard_errors_.items()
+        },
+        fitted=tuple((path, series) for path, series in result.fitted_),
+        out_of_sample=tuple(
+            sorted({f"{r['path']}:{r['variable']}" for r in rows if r["role"] == "out_of_sample"})
+        ),
+        predictions=tuple(rows),
+        data=data,
+        files={key: Path(value) for key, value in files.items()},
+        seconds=seconds,
+        seconds_calibration=seconds_calibration,
+        calibration=result,
+        identifiability=ide,
+    )
 
 
 def calibrate_on_replicas(folders, out_dir, options=None, say=print) -> dict:
@@ -613,12 +617,12 @@ def _calibrate(parser: argparse.ArgumentParser, args: argparse.Namespace, output
     outcome = calibrate_from_results(history, probes, args.out, options, outputs=outputs)
     if args.quiet:
         return 0
-    print(Path(outcome["files"]["calibration_text"]).read_text())
+    print(outcome.files["calibration_text"].read_text())
     if truth is not None:
         print("synthetic truth vs calibrated:")
         for sym, value in truth.as_symbols().items():
-            print(f"    {sym:<12} {value:<10.5g} {outcome['parameters'][sym]:.6g}")
-    print(f"report: {outcome['files']['report']} ({outcome['seconds']:.1f} s)")
+            print(f"    {sym:<12} {value:<10.5g} {outcome.parameters[sym]:.6g}")
+    print(f"report: {outcome.report} ({outcome.seconds:.1f} s)")
     return 0
 
 
@@ -628,7 +632,7 @@ def _quiet_say(quiet: bool):
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """``python -m bridge.pipeline`` (also ``python -m bridge calibrate``); returns the exit code
-    (one error handler, :mod:`tiv_model.command_line`: bad input, an ``--out`` holding an
+    (one error handler, :mod:`clay_cli`: bad input, an ``--out`` holding an
     earlier calibration without ``--overwrite`` included, is one line with exit code 2; a
     calibration that cannot run, :class:`CalibrationError`, exit code 1; a full disk
     (ENOSPC/EDQUOT), exit code 4; ``--debug`` shows the traceback)."""

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from .calibration_result import CalibrationResult
+from .calibration import CalibrationResult
 from .predict import summary
 
 
@@ -69,7 +69,7 @@ def report_markdown(
     identifiability=None,
 ) -> str:
     """The report as markdown text (see the module docstring); ``identifiability`` is a
-    :class:`bridge.identifiability.Identifiability` (profile table and statement)."""
+    :class:`bridge.calibration.identifiability.Identifiability` (profile table and statement)."""
     lines = ["# Calibration of the TIV model on DEM results", ""]
     if data_description:
         lines += ["## Data and conventions", ""]

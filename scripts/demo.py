@@ -218,7 +218,7 @@ def run_bridge_demo(dem_dir: Path, out_dir: Path) -> dict:
         dem_dir / "history.nc", probes if probes.exists() else None, out_dir, {}
     )
     _log(f"calibration done in {time.perf_counter() - started:.1f} s")
-    return outcome
+    return outcome.to_dict()
 
 
 def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:

@@ -1,7 +1,11 @@
 """The layers of the project import in one direction only (see ARCHITECTURE.md).
 
+- ``clay_cli`` (the command lines' shared conventions) imports the standard library only;
+  ``tiv_model``, ``dem_taichi`` and ``bridge`` may import it;
 - ``tiv_model`` imports neither taichi nor ``dem_taichi`` nor ``bridge``;
+- ``dem_taichi`` imports nothing of ``tiv_model`` nor ``bridge``;
 - ``bridge`` never imports taichi nor the engine (only ``dem_taichi.io`` is allowed);
+- inside the repository no module imports a moved module by its old path;
 - ``import dem_taichi`` does not initialise Taichi: only ``dem_taichi/engine/runtime.py`` calls
   ``ti.init``;
 - inside ``dem_taichi`` the role subpackages are layered (:data:`LAYERS`): a module imports its
@@ -58,8 +62,51 @@ def offending(package: str, forbidden: tuple[str, ...], allowed: tuple[str, ...]
     return bad
 
 
+#: the project's import packages; anything else ``clay_cli`` imports must be standard library
+PROJECT = ("clay_cli", "tiv_model", "dem_taichi", "bridge")
+
+
+def test_clay_cli_imports_the_standard_library_only():
+    imported = {
+        name.split(".")[0] for names in imported_modules("clay_cli").values() for name in names
+    }
+    outside = sorted(
+        name
+        for name in imported - {"clay_cli", "__future__"}
+        if name not in sys.stdlib_module_names
+    )
+    assert outside == []
+    assert offending("clay_cli", PROJECT[1:]) == []
+
+
 def test_tiv_model_is_standalone():
     assert offending("tiv_model", ("taichi", "dem_taichi", "bridge")) == []
+
+
+def test_dem_taichi_imports_no_tiv_model_nor_bridge():
+    """The engine shares only the command-line conventions (``clay_cli``) with the model."""
+    assert offending("dem_taichi", ("tiv_model", "bridge")) == []
+
+
+#: old module path -> new one (kept for one release, with a DeprecationWarning): no module of
+#: the repository imports the old path
+OLD_PATHS = {
+    "tiv_model.command_line": "clay_cli",
+    "bridge.calibration_options": "bridge.calibration.options",
+    "bridge.calibration_result": "bridge.calibration.result",
+    "bridge.identifiability": "bridge.calibration.identifiability",
+}
+
+
+def test_no_module_imports_an_old_path():
+    bad = []
+    for package in (*PROJECT, "tests", "scripts", "benchmarks"):
+        for path, names in imported_modules(package).items():
+            bad += [f"{path} imports {name}" for name in names if name in OLD_PATHS]
+    for package in PROJECT:  # relative imports too
+        for module, targets in module_imports(package).items():
+            bad += [f"{module} imports {t}" for t in targets if t in OLD_PATHS]
+    assert bad == []
 
 
 def test_bridge_reads_results_not_the_engine():
@@ -79,7 +126,7 @@ def test_only_runtime_initialises_taichi():
 WITHOUT_TAICHI = [f"dem_taichi.{sub}" for names in LAYERS for sub in names if sub != "kernels"]
 
 
-@pytest.mark.parametrize("package", ["tiv_model", "bridge", *WITHOUT_TAICHI])
+@pytest.mark.parametrize("package", ["clay_cli", "tiv_model", "bridge", *WITHOUT_TAICHI])
 def test_import_does_not_load_taichi(package):
     code = f"import sys, {package}, pkgutil, importlib\n"
     code += "[importlib.import_module(m.name) for m in "
@@ -181,7 +228,7 @@ def test_import_loop_detector_finds_a_loop():
     assert import_loops({"a": {"b"}, "b": set()}) == []
 
 
-@pytest.mark.parametrize("package", ["dem_taichi", "tiv_model", "bridge"])
+@pytest.mark.parametrize("package", ["clay_cli", "dem_taichi", "tiv_model", "bridge"])
 def test_no_import_loops(package):
     """No module of the package imports, even lazily, one that imports it back."""
     assert import_loops(module_imports(package)) == []

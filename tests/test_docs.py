@@ -98,6 +98,7 @@ def test_site_has_the_generated_and_exposed_pages(built_site):
         "reference/api/dem_taichi",
         "reference/api/tiv_model",
         "reference/api/bridge",
+        "reference/api/clay_cli",
         "project/architecture",
         "project/changelog",
     ):

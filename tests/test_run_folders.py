@@ -22,6 +22,7 @@ from pathlib import Path
 
 import pytest
 
+from clay_cli import EXIT_DISK_FULL, EXIT_USAGE, run_command
 from dem_taichi.io.run_directory import (
     RUN_LOCK,
     RUN_RECORD,
@@ -31,7 +32,6 @@ from dem_taichi.io.run_directory import (
 )
 from dem_taichi.scene.config import load_scene, scene_to_toml
 from tests.sentinels import one_line, sentinel, survived
-from tiv_model.command_line import EXIT_DISK_FULL, EXIT_USAGE, run_command
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = scene_to_toml(load_scene("smoke"))

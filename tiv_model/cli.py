@@ -11,7 +11,7 @@ Examples::
 Common options: ``--p0`` (kPa, start of the path, normally consolidated, isotropic fabric),
 ``--anisotropy A|B``, ``--no-constraint-forces``, ``--bound-law exponential|tanh``,
 ``--increments``, ``--param SYMBOL=VALUE`` (override Table 1, repeatable), ``--quiet``,
-``--debug`` (:mod:`tiv_model.command_line`).
+``--debug`` (:mod:`clay_cli`).
 
 Checked before anything runs: the paths load, so ``--p-max`` and ``--sigma-v-max`` must exceed
 ``--p0`` (an unloading path is ``unload``); ``|--eta| < M`` (the critical stress ratio; paths
@@ -32,8 +32,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import __version__, drivers
-from .command_line import (
+from clay_cli import (
     ArgumentParser,
     UsageError,
     add_common_flags,
@@ -42,6 +41,8 @@ from .command_line import (
     replace_file,
     run_command,
 )
+
+from . import __version__, drivers
 from .errors import ParameterError, TivModelError
 from .integrate import initial_state
 from .params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions, Parameters

@@ -44,7 +44,7 @@ SIGINT (Ctrl-C) or SIGTERM stops the run at the next output step: a checkpoint i
 history closed, and one line says how to resume; the exit code is 128 + the signal (130 for
 SIGINT). The resumed run continues bit for bit.
 
-Errors (:mod:`tiv_model.command_line`, the project's one handler): a bad option, scene, file or
+Errors (:mod:`clay_cli`, the project's one handler): a bad option, scene, file or
 directory is one line ``python -m dem_taichi: error: ...`` with exit code 2 (``--debug`` shows
 the traceback); a blow-up or a capacity the engine cannot grow, exit code 3; a full disk
 (ENOSPC/EDQUOT), exit code 4 (the lock is released, the history synced up to the last output
@@ -63,16 +63,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from dem_taichi import __version__
-from dem_taichi.protocol.cost import check_cost, cost_lines
-from dem_taichi.protocol.run_schedule import builtin_schedule
-from dem_taichi.scene.config import (
-    Scene,
-    scene_from_toml,
-    scene_to_toml,
-)
-from dem_taichi.scene.options import add_preset_option, scene_from_options
-from tiv_model.command_line import (
+from clay_cli import (
     ArgumentParser,
     UsageError,
     add_common_flags,
@@ -82,6 +73,15 @@ from tiv_model.command_line import (
     replace_file,
     run_command,
 )
+from dem_taichi import __version__
+from dem_taichi.protocol.cost import check_cost, cost_lines
+from dem_taichi.protocol.run_schedule import builtin_schedule
+from dem_taichi.scene.config import (
+    Scene,
+    scene_from_toml,
+    scene_to_toml,
+)
+from dem_taichi.scene.options import add_preset_option, scene_from_options
 
 __all__ = ["main", "builtin_schedule"]
 

@@ -119,11 +119,11 @@ def _check_history_variables(variables: Iterable[Variable]) -> dict[str, Variabl
 def _full_disk_reported(path: Path) -> Iterator[None]:
     """netCDF4 (HDF5) reports a full disk as ``RuntimeError('NetCDF: HDF error')``: raise it
     again as ``OSError`` ENOSPC naming ``path`` when the disk is full, so that the command lines
-    give their disk-full exit code (:mod:`tiv_model.command_line`)."""
+    give their disk-full exit code (:mod:`clay_cli`)."""
     try:
         yield
     except RuntimeError as error:
-        from tiv_model.command_line import disk_full_while_writing
+        from clay_cli import disk_full_while_writing
 
         full = disk_full_while_writing(error, path)
         if full is None:

@@ -86,7 +86,7 @@ RESUME_FORMAT_VERSION = 1
 class ResumeFileError(ValueError):
     """A resume file that cannot be used (damaged, another run's, another format): one line
     naming the file and what to do. A ``ValueError``: the command line reports it as bad
-    input (exit code 2, :mod:`tiv_model.command_line`)."""
+    input (exit code 2, :mod:`clay_cli`)."""
 
 
 @dataclass(frozen=True)

@@ -381,7 +381,7 @@ def _write_figures_and_report(result: ProtocolResult, sim) -> None:
 
 
 def _parser(prog: str) -> argparse.ArgumentParser:
-    from tiv_model.command_line import ArgumentParser, add_common_flags, int_in_range
+    from clay_cli import ArgumentParser, add_common_flags, int_in_range
 
     parser = ArgumentParser(
         prog=prog,
@@ -429,7 +429,7 @@ def _parser(prog: str) -> argparse.ArgumentParser:
 
 
 def _main(argv: list[str], prog: str) -> int:
-    from tiv_model.command_line import UsageError, refuse_control_characters
+    from clay_cli import UsageError, refuse_control_characters
 
     refuse_control_characters(argv)
     args = _parser(prog).parse_args(argv)
@@ -489,15 +489,15 @@ def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.protoc
     """``python -m dem_taichi.protocol SCENE --out DIR [--arch] [--precision] [--pattern]
     [--workers] [--overwrite] [--quiet] [--debug]``; returns the exit code.
 
-    One error handler (:mod:`tiv_model.command_line`): bad input is one line with exit code 2,
+    One error handler (:mod:`clay_cli`): bad input is one line with exit code 2,
     a stage that cannot reach its goal (:class:`ProtocolError`) exit code 1, a blow-up exit
     code 3. SIGINT (Ctrl-C) or SIGTERM stops the run: the files written so far are closed and
     one line says what is saved and the command that resumes it (``--resume``); exit code
     128 + the signal (130, 143).
     """
+    from clay_cli import run_command
     from dem_taichi.engine.failures import BlowUpError, CapacityError
     from dem_taichi.io import CheckpointError
-    from tiv_model.command_line import run_command
 
     return run_command(
         prog,

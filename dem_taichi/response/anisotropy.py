@@ -131,7 +131,7 @@ OUTPUT = "anisotropy.json"
 
 
 def _parser(prog: str = PROG):
-    from tiv_model.command_line import ArgumentParser, add_common_flags
+    from clay_cli import ArgumentParser, add_common_flags
 
     parser = ArgumentParser(
         prog=prog,
@@ -149,7 +149,7 @@ def _parser(prog: str = PROG):
 
 
 def _table(argv: list[str], prog: str = PROG) -> int:
-    from tiv_model.command_line import UsageError, refuse_control_characters, replace_file
+    from clay_cli import UsageError, refuse_control_characters, replace_file
 
     refuse_control_characters(argv)
     args = _parser(prog).parse_args(argv)
@@ -195,9 +195,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """``python -m dem_taichi anisotropy RUN_DIR [--overwrite]``: table of the labelled
     states' checkpoints, written to ``RUN_DIR/anisotropy.json`` (atomically; an existing file, or a
     link there, is refused unless ``--overwrite``, which replaces the link, never its target).
-    Errors are one line, exit code 2 (:func:`tiv_model.command_line.run_command`)."""
+    Errors are one line, exit code 2 (:func:`clay_cli.run_command`)."""
+    from clay_cli import run_command
     from dem_taichi.io import CheckpointError
-    from tiv_model.command_line import run_command
 
     return run_command(prog, lambda args: _table(args, prog), argv, user_errors=(CheckpointError,))
 

@@ -64,6 +64,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from clay_cli import first_control_character
 from dem_taichi.scene import sections as scene_sections
 from dem_taichi.scene.base import SceneError, SceneSection, read_text_file
 from dem_taichi.scene.presets import fill_preset, set_keys
@@ -80,7 +81,6 @@ from dem_taichi.scene.sections import (
     SceneInfo,
     VanDerWaals,
 )
-from tiv_model.command_line import first_control_character
 
 __all__ = [
     "SceneError",

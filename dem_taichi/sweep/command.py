@@ -73,6 +73,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from clay_cli import UsageError, first_control_character
 from dem_taichi.sweep.client import (  # noqa: F401 - the public names of the sweep
     INDEX_CSV,
     INDEX_JSON,
@@ -86,7 +87,6 @@ from dem_taichi.sweep.member import (
     run_member,
 )
 from dem_taichi.sweep.spec import MAX_MEMBERS, SweepError, SweepSpec, load_sweep
-from tiv_model.command_line import UsageError, first_control_character
 
 __all__ = ["MEMBER_RECORD", "SweepOutcome", "run_sweep", "run_member", "read_index", "main"]
 
@@ -242,7 +242,7 @@ def _summarise_command(args) -> int:
 
 
 def _parser(prog: str) -> argparse.ArgumentParser:
-    from tiv_model.command_line import ArgumentParser, add_common_flags, int_in_range
+    from clay_cli import ArgumentParser, add_common_flags, int_in_range
 
     parser = ArgumentParser(
         prog=prog,
@@ -334,9 +334,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m dem_taichi.sweep"
     [--overwrite]``
     (both with ``--quiet``, ``--debug``); returns the exit code: 0 every member done, 1 a
     member failed, 2 bad input (an invalid sweep file: one line naming the key and what is
-    allowed; the traceback with ``--debug``; :mod:`tiv_model.command_line`), 128 + N stopped
+    allowed; the traceback with ``--debug``; :mod:`clay_cli`), 128 + N stopped
     by signal N (130 SIGINT, 143 SIGTERM; a re-run resumes)."""
-    from tiv_model.command_line import run_command
+    from clay_cli import run_command
 
     return run_command(prog, lambda args: _main(args, prog), argv, user_errors=(SweepError,))
 

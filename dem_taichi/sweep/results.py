@@ -467,8 +467,8 @@ def summarise_sweep(
     path (default ``out_dir/replica_summary.md``; the other files take its stem,
     :func:`summary_files`). An existing file among them (or a link there) is refused
     (ValueError) unless ``overwrite``; each file is written atomically
-    (:func:`tiv_model.command_line.replace_file`: a link is replaced, never written through)."""
-    from tiv_model.command_line import replace_file
+    (:func:`clay_cli.replace_file`: a link is replaced, never written through)."""
+    from clay_cli import replace_file
 
     folder = Path(out_dir)
     files = summary_files(folder, out)

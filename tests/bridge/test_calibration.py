@@ -205,7 +205,7 @@ def test_fabric_stage_with_the_measured_fabric_at_a():
 def test_covariance_from_jacobian_matches_inverse_and_flags_undetermined():
     import numpy as np
 
-    from bridge.calibration import covariance_from_jacobian
+    from bridge.calibration.result import covariance_from_jacobian
 
     rng = np.random.default_rng(3)
     jac = rng.normal(size=(12, 3))

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from bridge.calibration import CalibrationOptions, calibrate
-from bridge.identifiability import identifiability, replica_spread
+from bridge.calibration.identifiability import identifiability, replica_spread
 from bridge.series import all_probe_series, history_series
 from bridge.synthetic import DEM_NOISE, add_noise, synthetic_results
 

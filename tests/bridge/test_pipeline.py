@@ -1,12 +1,15 @@
 """Predictions, figures, report and the pipeline on synthetic DEM-schema files."""
 
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bridge.calibration import CalibrationOptions
 from bridge.pipeline import PipelineOptions, calibrate_from_results, main
+from bridge.pipeline_result import PipelineResult
 from bridge.predict import PredictionError, predict_paths, predict_probes
 from bridge.series import SeriesError, all_probe_series, history_series
 
@@ -86,6 +89,25 @@ def test_pipeline_writes_calibration_predictions_figures_and_report(synthetic, t
     assert "Back-prediction of the stiffness anisotropy along K0" in report
     saved = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert saved["parameters"]["omega"] == pytest.approx(TRUTH.omega, rel=1e-8)
+    # one result object: typed fields, the old dict through to_dict() and mapping access
+    assert isinstance(outcome, PipelineResult)
+    assert outcome.parameters["k"] == outcome["parameters"]["k"]
+    assert ("k0", "fabric") in outcome.fitted
+    assert outcome.report == tmp_path / "out" / "report.md" and outcome.report.exists()
+    assert all(isinstance(path, Path) and path.exists() for path in outcome.files.values())
+    assert outcome.calibration.params_.as_symbols() == dict(outcome.parameters)
+    assert outcome.identifiability is not None
+    assert outcome.seconds_identifiability == outcome.identifiability.seconds
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        outcome.seconds = 0.0
+    old = outcome.to_dict()
+    assert set(old) == set(outcome) == {
+        "parameters", "standard_errors", "fitted", "out_of_sample", "predictions", "data",
+        "files", "seconds", "seconds_calibration", "identifiability", "seconds_identifiability",
+    }  # fmt: skip
+    assert {key: outcome[key] for key in outcome} == old == dict(outcome)
+    assert old["files"]["report"] == str(outcome.report)  # strings and lists, as in 0.1.0
+    assert ["k0", "fabric"] in old["fitted"]
 
 
 def test_pipeline_needs_a_stress_scale(synthetic, tmp_path):

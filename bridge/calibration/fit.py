@@ -51,7 +51,9 @@ from tiv_model.errors import TivModelError
 from tiv_model.integrate import normally_consolidated_preconsolidation
 from tiv_model.params import ModelOptions, Parameters
 
-from .calibration_options import (
+from ..moduli import moduli_at_states
+from ..runs import WarmStart, k0_run, start_state, stress_path_run
+from .options import (
     DEFAULT_BOUNDS,
     DEFAULT_SCALES,
     ELASTIC_MODULI,
@@ -63,9 +65,7 @@ from .calibration_options import (
     CalibrationError,
     CalibrationOptions,
 )
-from .calibration_result import CalibrationResult, StageFit, covariance_from_jacobian
-from .moduli import moduli_at_states
-from .runs import WarmStart, k0_run, start_state, stress_path_run
+from .result import CalibrationResult, StageFit, covariance_from_jacobian
 
 
 # ---------------------------------------------------------------------------------------------
