@@ -52,11 +52,6 @@ def aggregate(runner) -> dict:
     stage = "aggregation"
     if not c.aggregates:
         raise ProtocolError("[protocol] aggregation = 'none': there is no aggregation stage")
-    if c.aggregation_speed is not None and c.aggregation_thermostat == "clusters" and sim.bonded:
-        raise ProtocolError(
-            "[protocol] aggregation_thermostat = 'clusters' needs rigid rods: use [particles] "
-            "rod_model = 'rigid', or another aggregation_thermostat"
-        )
     t0 = time.perf_counter()
     record = runner._record(stage)
     every = sim.scene.output.every

@@ -505,9 +505,10 @@ class ProtocolConfig(SceneSection):
 
     def check_scene(self, scene) -> None:
         """The checks that need the rest of the scene ([particles], [long_range]): an
-        aggregation area fraction below the gas's, a reduced pressure tolerance without
-        long-range forces. Run with the whole-scene checks at load and by ``Scene.replace``
-        (:func:`dem_taichi.scene.config._check_scene`), and again by :func:`protocol_settings`."""
+        aggregation area fraction below the gas's, the cluster thermostat on bonded rods, a
+        reduced pressure tolerance without long-range forces. Run with the whole-scene checks
+        at load and by ``Scene.replace`` (:func:`dem_taichi.scene.config._check_scene`), and
+        again by :func:`protocol_settings`."""
         phi = self.aggregation_area_fraction
         phi0 = scene.particles.initial_area_fraction
         if phi is not None and phi < phi0:
@@ -515,6 +516,12 @@ class ProtocolConfig(SceneSection):
                 f"[protocol] aggregation_area_fraction = {phi!r} is below [particles] "
                 f"initial_area_fraction = {phi0!r}: allowed [{phi0!r}, 1) (the gas is only "
                 "compressed before ageing)"
+            )
+        if self.aggregation_thermostat == "clusters" and scene.bonded:
+            raise SceneError(
+                "[protocol] aggregation_thermostat = 'clusters' needs rigid rods (a bonded "
+                "rod's discs are bodies of their own); this scene's [particles] rod_model = "
+                "'bonded': use rod_model = 'rigid', or another aggregation_thermostat"
             )
         lr = scene.long_range
         if self.pressure_tolerance_reduced is not None and not (

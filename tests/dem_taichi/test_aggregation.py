@@ -655,9 +655,9 @@ def test_cluster_speed_on_a_simulation_is_seeded_and_refuses_bonded_rods():
 
 
 def test_the_cluster_thermostat_refuses_bonded_rods_before_the_stage_runs():
-    """A bonded scene asking for aggregation_thermostat = 'clusters' stops at the start of the
-    stage with one line naming the keys, before any step."""
-    from dem_taichi.protocol.records import ProtocolError
+    """A bonded scene asking for aggregation_thermostat = 'clusters' is refused with one line
+    naming the keys, before any step: by the scene checks (at load, and when the runner reads
+    its [protocol] section)."""
 
     base = load_scene("smoke_bonded").replace(long_range=ATTRACTIVE)
     config = dataclasses.replace(
@@ -669,5 +669,10 @@ def test_the_cluster_thermostat_refuses_bonded_rods_before_the_stage_runs():
     )
     extensions = {"protocol": config, "probing": ProbingConfig(enabled=False)}
     scene = dataclasses.replace(base, extensions=MappingProxyType(extensions), source_text="")
-    with pytest.raises(ProtocolError, match="needs rigid rods: use \\[particles\\] rod_model"):
+    with pytest.raises(SceneError, match="needs rigid rods .*use rod_model = 'rigid'"):
         run_stage(scene)
+    with pytest.raises(SceneError, match="aggregation_thermostat = 'clusters' needs rigid rods"):
+        scene_from_toml(
+            '[particles]\nrod_model = "bonded"\n[protocol]\naggregation = "time"\n'
+            'aggregation_time = 1.0\naggregation_speed = 0.2\naggregation_thermostat = "clusters"'
+        )
