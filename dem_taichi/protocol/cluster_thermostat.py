@@ -20,13 +20,12 @@ them to a simulation. Seeded by (seed, the step), so runs are deterministic and 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from dem_taichi.engine.simulation import Simulation
+from dem_taichi.protocol.quasistatic import equipartition_spin, rms_velocity_component
 
 __all__ = ["cluster_labels", "cluster_velocities", "cluster_speed"]
 
@@ -75,14 +74,14 @@ def cluster_speed(sim: Simulation, speed: float, seed: int) -> float:
         )
     state = sim.get_state()
     velocity = np.asarray(state["velocity"], dtype=float)
-    before = float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
+    before = rms_velocity_component(velocity)
     rod_i, rod_j = sim.interacting_rod_pairs()
     labels = cluster_labels(sim.n_rods, rod_i, rod_j)
     rng = np.random.Generator(np.random.PCG64([int(seed), STREAM, int(sim.step)]))
     new, _ = cluster_velocities(velocity, labels, speed, rng)
     omega = np.array(state["angular_velocity"], dtype=float)
     free = np.bincount(labels)[labels] == 1
-    spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
+    spin = equipartition_spin(sim, speed)
     omega[free] = rng.normal(0.0, spin, size=int(free.sum()))
     state["velocity"] = new.astype(state["velocity"].dtype)
     state["angular_velocity"] = omega.astype(state["angular_velocity"].dtype)

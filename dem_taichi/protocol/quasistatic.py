@@ -32,6 +32,7 @@ __all__ = [
     "apply_strain",
     "hold",
     "rms_velocity_component",
+    "equipartition_spin",
     "rescale_speed",
     "resample_speed",
     "refresh_speed",
@@ -126,6 +127,12 @@ def rms_velocity_component(velocity) -> float:
     return float(math.sqrt(float((velocity * velocity).mean()))) if velocity.size else 0.0
 
 
+def equipartition_spin(sim: Simulation, speed: float) -> float:
+    """The rms angular velocity at the kinetic temperature of ``speed``: speed sqrt(M/I), so
+    that ½ I ω² = ½ M v_x² (M and I of a rod, or of a disc for bonded rods)."""
+    return speed * math.sqrt(sim.body.mass / sim.body.inertia)
+
+
 def rescale_speed(sim: Simulation, speed: float) -> float:
     """Scale every body's velocity and angular velocity by s = ``speed`` / (rms velocity
     component, sqrt(<v_x² + v_y²>/2), the measure of ``[particles] initial_speed``) so that it
@@ -165,7 +172,7 @@ def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
     drawn = rng.normal(0.0, speed, size=velocity.shape)
     drawn -= drawn.mean(axis=0, keepdims=True)
     omega = state["angular_velocity"]
-    spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
+    spin = equipartition_spin(sim, speed)
     state["velocity"] = drawn.astype(velocity.dtype)
     state["angular_velocity"] = rng.normal(0.0, spin, size=omega.shape).astype(omega.dtype)
     sim.set_state(state)
@@ -198,7 +205,7 @@ def refresh_speed(sim: Simulation, speed: float, seed: int, keep: float) -> floa
     noise = rng.normal(0.0, speed, size=velocity.shape)
     noise -= noise.mean(axis=0, keepdims=True)
     omega = state["angular_velocity"]
-    spin = speed * math.sqrt(sim.body.mass / sim.body.inertia)
+    spin = equipartition_spin(sim, speed)
     fresh = math.sqrt(1.0 - keep * keep)
     state["velocity"] = (keep * velocity + fresh * noise).astype(velocity.dtype)
     spun = rng.normal(0.0, spin, size=omega.shape)
