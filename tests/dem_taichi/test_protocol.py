@@ -435,6 +435,7 @@ def codegen_host() -> str:
     record, the servo feeds that bit back into the strain rates, and the trajectory departs
     from record ~70 on (the C→B servo then needs more than the 400,000 steps the reference run
     needed)."""
+    import hashlib
     import platform
     from importlib.metadata import version
 
@@ -450,8 +451,6 @@ def codegen_host() -> str:
     simd = sorted(
         f for f in fields["flags"].split() if f.startswith(("avx", "fma", "sse4", "asimd", "sve"))
     )
-    import hashlib
-
     features = hashlib.sha256(" ".join(simd).encode()).hexdigest()[:10]
     parts = [
         platform.machine(), fields["vendor_id"], fields["cpu family"], fields["model"], features,
