@@ -11,7 +11,8 @@ cell: how many runs converged (a run that stops on a servo failure writes no
 :func:`dem_taichi.analysis.findings.run_findings`: v at A, λ* from A to B (ln v – ln p, DEM
 stresses), λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured
 where E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
-C − B, N under both specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv`` (per
+C − B, E_h/E_v at B′ and B′ − B (B's probe against B′'s), the fabric deviator at C, N under both
+specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv`` (per
 cell) and ``<out>_runs.csv`` (per run).
 """
 
@@ -23,7 +24,7 @@ import math
 import re
 from pathlib import Path
 
-from dem_taichi.analysis.findings import mean_interval, run_findings
+from dem_taichi.analysis.findings import mean_interval, run_findings, state_findings
 
 HERE = Path(__file__).resolve().parent
 
@@ -40,6 +41,9 @@ COLUMNS = (
     ("ratio_B", "E_h/E_v at B", 3),
     ("ratio_C", "E_h/E_v at C", 3),
     ("ratio_C_minus_B", "C − B", 3),
+    ("ratio_Bp", "E_h/E_v at B′", 3),
+    ("ratio_Bp_minus_B", "B′ − B", 3),
+    ("fabric_C", "fabric deviator at C", 3),
     ("N_disc", "N (disc area)", 3),
     ("N_rectangle", "N (rod rectangle)", 3),
     ("minutes", "wall (min)", 2),
@@ -66,6 +70,10 @@ def run_row(folder: Path) -> dict:
     row["ratio_B"] = _last(f["iso_ratio"])
     row["ratio_C"] = _last(f["k0_ratio"])
     row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
+    # B′ (C unloaded to B's p): its probe's E_h/E_v, paired with the same run's B
+    states = state_findings(folder)
+    row["ratio_Bp"] = states.get("B'", {}).get("e_ratio", math.nan)
+    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - states.get("B", {}).get("e_ratio", math.nan)
     row["minutes"] = f["seconds"] / 60.0
     return row
 
