@@ -9,7 +9,8 @@ relaxed state is a candidate for the transition when p > ``pressure_tolerance`` 
 Z_m ≥ ``coordination_min``. On a candidate found with h > ``min_compression_increment`` the
 sample is restored to the previous relaxed state and h is halved (bisection of the transition); at
 the smallest h a candidate becomes **A** when p stays above the tolerance over the next
-``confirm_increments`` relaxed increments (then the sample is restored to the candidate). The rule
+``confirm_increments`` relaxed increments, each of h or of ``confirm_increment`` when set (then
+the sample is restored to the candidate: the confirmation decides, it does not move A). The rule
 is :func:`dem_taichi.analysis.arrays.detect_transition`, re-applied to the whole relaxed sequence
 and recorded with p, Z_m and the Z_m jump (:func:`transition_record`).
 
@@ -31,7 +32,7 @@ from dem_taichi.protocol.quasistatic import apply_strain, strain_rate_cap
 from dem_taichi.protocol.records import ProtocolError, RelaxedState
 from dem_taichi.scene.protocol_sections import ProtocolConfig
 
-__all__ = ["compress_to_transition", "load_compression", "transition_record"]
+__all__ = ["compress_to_transition", "increment_h", "load_compression", "transition_record"]
 
 
 def compress_to_transition(runner) -> RelaxedState:
@@ -67,12 +68,13 @@ def compress_to_transition(runner) -> RelaxedState:
     for increment in range(c.max_compression_increments):
         p_now = previous[1]["mean_stress"] if candidate is None else measures["mean_stress"]
         rate_p = p_now if p_now > tol else 0.0
+        h_now = increment_h(c, h, confirming=candidate is not None)
         with doing("search" if candidate is None else "confirm"):
-            load_compression(runner, stage, h, rate_p, tol)
+            load_compression(runner, stage, h_now, rate_p, tol)
             measures, ok = runner._relax(stage, gas)
         entry = {
             "increment": increment,
-            "h": h,
+            "h": h_now,
             "mean_stress": measures["mean_stress"],
             "mechanical_coordination_number": measures["mechanical_coordination_number"],
             "specific_volume": measures["specific_volume"],
@@ -150,6 +152,15 @@ def compress_to_transition(runner) -> RelaxedState:
     return state
 
 
+def increment_h(c: ProtocolConfig, h: float, confirming: bool) -> float:
+    """The per-axis strain of the next compression increment: ``h`` while searching; while
+    confirming a candidate A, ``[protocol] confirm_increment`` when set (at most ``h``), else
+    ``h``."""
+    if confirming and c.confirm_increment is not None:
+        return min(h, c.confirm_increment)
+    return h
+
+
 def load_compression(runner, stage: str, h: float, p_now: float, tol: float) -> None:
     """One compression increment h; ``tol`` the A criterion's pressure tolerance (below
     it the gas rate applies and I is not recorded)."""
@@ -189,7 +200,9 @@ def transition_record(
     last_cand = max(i for i, e in enumerate(relaxed_seq) if e.get("candidate"))
     details: dict = {
         "rule": transition.rule
-        + f"; confirmed over {c.confirm_increments} further relaxed increments; "
+        + f"; confirmed over {c.confirm_increments} further relaxed increments"
+        + ("" if c.confirm_increment is None else f" of at most {c.confirm_increment:g}")
+        + "; "
         "increments bisected (sample restored to the previous relaxed state, increment "
         f"halved) from {c.compression_increment:g} until p <= "
         f"{c.transition_pressure_factor:g} x tolerance or the increment reaches "

@@ -92,6 +92,12 @@ class ProtocolConfig(SceneSection):
       percolating (2D rigid frictional bodies are isostatic at Z = d + 1 = 3).
     - ``confirm_increments`` [2]: relaxed increments after a candidate A over which p must stay
       above the tolerance (the transition rule "p stays positive").
+    - ``confirm_increment`` [unset]: per-axis logarithmic strain of each of those increments
+      (unset: the candidate's own increment h, up to ``compression_increment``). The
+      confirmation only decides whether the candidate is A (the sample is then restored to
+      it), so while the decision is the same, A and everything after it are bitwise the same;
+      the steps are not: at p ≈ p_A the inertial-number cap makes a 0.02 increment the
+      longest loading of the stage (paper scene, seed 3: 159,000 of its 518,000 steps).
     - ``max_compression_increments`` [400]: give up (error) after this many increments.
     - ``relax_unbalanced_force`` [1e-4]: UFR below which a state is relaxed (static).
     - ``relax_kinetic_energy_per_rod`` [1.0]: and kinetic energy per rod below this (energy).
@@ -270,6 +276,22 @@ class ProtocolConfig(SceneSection):
             ),
             unit="1",
         ),
+    )
+    confirm_increment: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                0.2,
+                lo_open=True,
+                doc=(
+                    "per-axis logarithmic strain of each confirmation increment after a "
+                    "candidate A (unset: the candidate's own increment)"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
     )
     max_compression_increments: int = field(
         default=400,
