@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import math
+from itertools import zip_longest
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +40,17 @@ from scipy import stats
 
 from .series import HISTORY_REQUIRED, PROBES_REQUIRED, SeriesError, check_layout
 
-__all__ = ["replica_runs", "replica_mean", "calibrate_replicas", "parameter_spread"]
+__all__ = [
+    "replica_runs",
+    "replica_mean",
+    "aligned_replicas",
+    "aligned_records",
+    "history_stage",
+    "probe_stage",
+    "nan_mean",
+    "calibrate_replicas",
+    "parameter_spread",
+]
 
 RELAXED = "relaxed_states.nc"
 PROBES = "probes.nc"
@@ -80,7 +91,7 @@ def _stage_blocks(ds: xr.Dataset, dim: str, key) -> list[tuple[object, np.ndarra
     return [(k, np.array(idx[-1:] if k == "isotropic_to_A" else idx)) for k, idx in blocks]
 
 
-def _nan_mean(values: np.ndarray) -> np.ndarray:
+def nan_mean(values: np.ndarray) -> np.ndarray:
     """Mean over axis 0 of the finite values; NaN where none is (a variable a run lacks)."""
     finite = np.isfinite(values)
     count = finite.sum(axis=0)
@@ -89,33 +100,59 @@ def _nan_mean(values: np.ndarray) -> np.ndarray:
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
-def _mean_dataset(datasets: list[xr.Dataset], dim: str, key, names: list[str]) -> xr.Dataset:
+def _first_difference(ours: list[tuple[object, int]], theirs: list[tuple[object, int]]) -> str:
+    """Where two stage layouts, lists of (stage, record count), first differ, in words."""
+    for a, b in zip_longest(ours, theirs):
+        if a == b:
+            continue
+        if a is None:
+            return f"stage {b[0]!r} ({b[1]} records), which the first has not"
+        if b is None:
+            return f"stage {a[0]!r}, which it lacks (the first has {a[1]} records)"
+        if a[0] == b[0]:
+            return f"stage {a[0]!r}: {b[1]} records against {a[1]}"
+        return f"stage {b[0]!r} ({b[1]} records) where the first has {a[0]!r} ({a[1]})"
+    return "no stage"
+
+
+def aligned_records(
+    datasets: list[xr.Dataset], dim: str, key, names: list[str], what: str = "records"
+) -> list[xr.Dataset]:
+    """Each replica's records in the aligned order: state A (the last record of the stage
+    ``isotropic_to_A``), then every record of each later stage in order of appearance;
+    ``key(ds, i)`` is the stage of record i. The same stages with the same record counts in
+    every replica, else :class:`SeriesError` (one line) naming the replica (``names``) and the
+    first stage that differs from the first replica's; ``what`` names the files."""
     layouts = [_stage_blocks(ds, dim, key) for ds in datasets]
-    first = layouts[0]
+    first = [(k, len(i)) for k, i in layouts[0]]
     for name, layout in zip(names[1:], layouts[1:], strict=True):
-        a = [(k, len(i)) for k, i in first]
-        b = [(k, len(i)) for k, i in layout]
-        if a != b:
+        other = [(k, len(i)) for k, i in layout]
+        if other != first:
             raise SeriesError(
-                f"replica {name!r} has other stages or record counts than {names[0]!r} "
-                f"({b} against {a}): replicas must be runs of one protocol"
+                f"replica {name!r} has other stages or record counts than {names[0]!r} in its "
+                f"{what}, at {_first_difference(first, other)}: replicas must be runs of one "
+                "protocol"
             )
-    picked = [
+    return [
         ds.isel({dim: np.concatenate([i for _, i in layout])})
         for ds, layout in zip(datasets, layouts, strict=True)
     ]
+
+
+def _mean_dataset(picked: list[xr.Dataset], dim: str, names: list[str]) -> xr.Dataset:
+    """The record-by-record mean of aligned replicas (:func:`aligned_records`)."""
     numeric = [v for v in picked[0].data_vars if np.issubdtype(picked[0][v].dtype, np.number)]
     mean = picked[0].copy(deep=True)
     stack = {v: np.stack([p[v].values for p in picked]) for v in numeric}
     for v in numeric:
         if v in ("stage", "step"):
             continue
-        mean[v].values = _nan_mean(stack[v])
+        mean[v].values = nan_mean(stack[v])
     if dim in mean.coords and np.issubdtype(mean[dim].dtype, np.number):
         mean = mean.assign_coords({dim: np.mean([p[dim].values for p in picked], axis=0)})
     mean.attrs.update(
-        title=f"mean of {len(datasets)} replicas: " + str(picked[0].attrs.get("title", "")),
-        replicas=len(datasets),
+        title=f"mean of {len(picked)} replicas: " + str(picked[0].attrs.get("title", "")),
+        replicas=len(picked),
         replica_runs=", ".join(names),
         replica_mean="record-by-record mean over replicas (bridge.replicas.replica_mean)",
     )
@@ -143,26 +180,39 @@ def _checked_replica(path: Path, names: tuple[str, ...], record_dim: str) -> xr.
     return ds
 
 
-def replica_mean(runs: list[Path]) -> tuple[xr.Dataset, xr.Dataset | None]:
-    """The record-by-record means of the replicas' ``relaxed_states.nc`` and ``probes.nc``
-    (None when a run has no probes). The stage codes must be the same in every run."""
+def history_stage(ds: xr.Dataset, i: int) -> str:
+    """The stage label of record ``i`` of a relaxed-states dataset (its alignment key)."""
     from dem_taichi.io.schema import STAGE_LABELS
 
+    return STAGE_LABELS.get(int(ds["stage"].values[i]), "?")
+
+
+def probe_stage(ds: xr.Dataset, i: int) -> str:
+    """The alignment key of probe ``i``: ``"A"`` for state A's probe, else its path (stage)."""
+    label = str(ds["state_label"].values[i])
+    return label if label == "A" else str(ds["path"].values[i])
+
+
+def aligned_replicas(runs: list[Path]) -> tuple[list[xr.Dataset], list[xr.Dataset] | None]:
+    """Each replica's ``relaxed_states.nc`` and ``probes.nc`` (None when a run has no probes),
+    checked (:func:`check_layout`) and cut to the aligned records (:func:`aligned_records`)."""
     names = [r.name for r in runs]
     relaxed = [_checked_replica(r / RELAXED, HISTORY_REQUIRED, "time") for r in runs]
-    history = _mean_dataset(
-        relaxed, "time", lambda ds, i: STAGE_LABELS.get(int(ds["stage"].values[i]), "?"), names
-    )
+    history = aligned_records(relaxed, "time", history_stage, names, RELAXED)
     if not all((r / PROBES).exists() for r in runs):
         return history, None
     wanted = PROBES_REQUIRED + ("state_label",)
     probes = [_checked_replica(r / PROBES, wanted, "probe") for r in runs]
+    return history, aligned_records(probes, "probe", probe_stage, names, PROBES)
 
-    def probe_key(ds, i):
-        label = str(ds["state_label"].values[i])
-        return label if label == "A" else str(ds["path"].values[i])
 
-    return history, _mean_dataset(probes, "probe", probe_key, names)
+def replica_mean(runs: list[Path]) -> tuple[xr.Dataset, xr.Dataset | None]:
+    """The record-by-record means of the replicas' ``relaxed_states.nc`` and ``probes.nc``
+    (None when a run has no probes), aligned by :func:`aligned_replicas`."""
+    names = [r.name for r in runs]
+    history, probes = aligned_replicas(runs)
+    mean = _mean_dataset(history, "time", names)
+    return mean, None if probes is None else _mean_dataset(probes, "probe", names)
 
 
 def parameter_spread(mean_fit: dict, replica_fits: dict[str, dict], confidence=0.95) -> dict:
