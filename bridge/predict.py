@@ -5,9 +5,10 @@ Two kinds of prediction (each a dataset along ``point``, the DEM's points of the
 * **path runs** (:func:`predict_paths`): the model run along the DEM paths from its own state A
   (:mod:`bridge.runs`): isotropic through the DEM's p; K0 through the DEM's σ_a with ε_r = 0
   (``k0_mode="element"``, default) or following the DEM's (σ_a, σ_r) history
-  (``k0_mode="stress"``); unloading from the model's C along the DEM's (p, q) path scaled onto
-  it; each radial path (``radial_1``…) from the model's A along the DEM's stresses. Variables:
-  stresses, η, v, β, E_oed,v, E_oed,h, E_h/E_v (model states).
+  (``k0_mode="stress"``); unloading from the model's C, the end of that K0 run (of the same
+  mode), along the DEM's (p, q) path scaled onto it; each radial path (``radial_1``…) from the
+  model's A along the DEM's stresses. Variables: stresses, η, v, β, E_oed,v, E_oed,h, E_h/E_v
+  (model states).
 * **elastic law at the measured probe states** (:func:`predict_probes`): the model's elastic
   stiffness at the DEM's measured (σ, v, β) of every probe: E_oed,v, E_oed,h, C_xxyy,
   E_h/E_v. Along K0 this is the back-prediction of the stiffness anisotropy from the measured
@@ -177,7 +178,7 @@ def predict_paths(
                     )
                     driver = "K0 (radial strain 0) through the DEM's axial stress"
                 else:
-                    run = stress_path_run(
+                    run, state_c = stress_path_run(
                         dem["axial_stress"].values,
                         dem["radial_stress"].values,
                         params,
@@ -185,24 +186,14 @@ def predict_paths(
                         None,
                         max_increments,
                         beta_a(dem),
+                        return_state=True,
                     )
                     driver = "stress control along the DEM's (sigma_a, sigma_r) history"
             else:
-                if state_c is None:
-                    k0 = series.get("k0")
-                    if k0 is None:
-                        raise PredictionError(
-                            "the unloading prediction starts at the model's C: "
-                            "it needs the 'k0' path series"
-                        )
-                    _, state_c = k0_run(
-                        k0["axial_stress"].values,
-                        float(k0["mean_stress"][0]),
-                        params,
-                        options,
-                        max_increments,
-                        return_state=True,
-                        start_fabric=beta_a(k0),
+                if state_c is None:  # the K0 run of this k0_mode gives C (paths run in order)
+                    raise PredictionError(
+                        "the unloading prediction starts at the model's C: "
+                        "it needs the 'k0' path series"
                     )
                 run = unloading_run(
                     dem["mean_stress"].values,

@@ -21,6 +21,8 @@ the DEM points (first point = the start state).
 
 from __future__ import annotations
 
+from typing import Literal, overload
+
 import numpy as np
 
 from tiv_model.drivers import record, run_path
@@ -196,6 +198,35 @@ def k0_run(
     return (out, states[-1]) if return_state else out
 
 
+@overload
+def stress_path_run(
+    axial_stress,
+    radial_stress,
+    params: Parameters,
+    options: ModelOptions = ...,
+    start: State | None = ...,
+    max_increments: int = ...,
+    start_fabric: float = ...,
+    warm: WarmStart | None = ...,
+    return_state: Literal[False] = ...,
+) -> dict[str, np.ndarray]: ...
+
+
+@overload
+def stress_path_run(
+    axial_stress,
+    radial_stress,
+    params: Parameters,
+    options: ModelOptions = ...,
+    start: State | None = ...,
+    max_increments: int = ...,
+    start_fabric: float = ...,
+    warm: WarmStart | None = ...,
+    *,
+    return_state: Literal[True],
+) -> tuple[dict[str, np.ndarray], State]: ...
+
+
 def stress_path_run(
     axial_stress,
     radial_stress,
@@ -205,10 +236,12 @@ def stress_path_run(
     max_increments: int = 40,
     start_fabric: float = 0.0,
     warm: WarmStart | None = None,
-) -> dict[str, np.ndarray]:
+    return_state: bool = False,
+) -> dict[str, np.ndarray] | tuple[dict[str, np.ndarray], State]:
     """Model run following the DEM's (σ_a, σ_r) history (kPa), from ``start`` or from state A
     (:func:`start_state` at the first point's p with ``start_fabric``); ``warm`` carries
-    starting values between runs."""
+    starting values between runs. With ``return_state`` also returns the model's last State
+    (C when the history is K0's), as :func:`k0_run` does."""
     sa = np.asarray(axial_stress, dtype=float)
     sr = np.asarray(radial_stress, dtype=float)
     if start is None:
@@ -219,9 +252,10 @@ def stress_path_run(
         for a, r in zip(sa[used], sr[used], strict=True)
     ]
     states, _ = _run(start, controls, params, options, warm=warm)
-    return _interpolate(
+    out = _interpolate(
         _collect(states, params, options), used, sa.size, np.arange(sa.size, dtype=float)
     )
+    return (out, states[-1]) if return_state else out
 
 
 def unloading_run(

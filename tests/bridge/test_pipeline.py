@@ -12,6 +12,7 @@ from bridge.pipeline import PipelineOptions, calibrate_from_results, main
 from bridge.pipeline_result import PipelineResult
 from bridge.predict import PredictionError, predict_paths, predict_probes
 from bridge.series import SeriesError, all_probe_series, history_series
+from tiv_model.params import TABLE1
 
 from .conftest import CONVENTION, TRUTH
 
@@ -37,6 +38,21 @@ def test_predictions_reproduce_the_generating_model(synthetic):
     assert runs["isotropic"]["mean_stress"].attrs["role"] == "input"
     with pytest.raises(PredictionError, match="k0_mode"):
         predict_paths(TRUTH, series, k0_mode="strain")
+
+
+@pytest.mark.parametrize("k0_mode", ["element", "stress"])
+def test_unloading_starts_where_the_k0_prediction_of_its_mode_ended(synthetic, k0_mode):
+    # Table 1, not the generating TRUTH, so the two modes reach different C's and a C taken
+    # from the other mode shows: at C the element K0 has σ_r 85.64 kPa, v 1.28011, β 0.1339;
+    # the stress-driven one the DEM's σ_r 90.45 kPa, v 1.27840, β 0.1282 (measured)
+    series = history_series(synthetic.history, CONVENTION)
+    runs = predict_paths(TABLE1, series, k0_mode=k0_mode)
+    c, start = runs["k0"].isel(point=-1), runs["unloading"].isel(point=0)
+    for name in ("axial_stress", "radial_stress", "specific_volume", "fabric"):
+        np.testing.assert_allclose(
+            float(start[name]), float(c[name]), rtol=1e-12, atol=1e-12, err_msg=name
+        )
+    assert runs["unloading"].attrs["k0_mode"] == k0_mode
 
 
 def test_predictions_fail_clearly(synthetic):
