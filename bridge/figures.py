@@ -10,6 +10,8 @@ Panels (each also a file of its own):
 * ``anisotropy``: E_oed,h/E_oed,v against p along K0 (the back-prediction) and the others.
 
 Legends say for every TIV curve whether it was fitted or is predicted out of sample.
+:func:`path_colour` and :func:`path_name` give each path its colour and legend name here and
+in :mod:`bridge.study_figure_panels`.
 """
 
 from __future__ import annotations
@@ -31,14 +33,18 @@ NAMES = {"isotropic": "isotropic A→B", "k0": "K0 A→C", "unloading": "unloadi
 _RADIAL_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan", "tab:pink", "tab:gray")
 
 
-def _colour(path: str) -> str:
-    """Colour of a path; the radial paths (``radial_k``) take the next colours in turn."""
+def path_colour(path: str) -> str:
+    """The matplotlib colour of a path: :data:`COLOURS` for ``"isotropic"``, ``"k0"`` and
+    ``"unloading"``; the radial paths ``radial_k`` take purple, brown, olive, cyan, pink, grey
+    in turn (k = 1 the first), so every figure of the bridge draws a path in one colour."""
     if path.startswith("radial_"):
         return _RADIAL_COLOURS[(int(path[7:]) - 1) % len(_RADIAL_COLOURS)]
     return COLOURS[path]
 
 
-def _name(path: str) -> str:
+def path_name(path: str) -> str:
+    """The legend's name of a path: :data:`NAMES` (``"K0 A→C"``…), ``radial_k`` as
+    ``"radial path k"``."""
     return NAMES.get(path, path.replace("radial_", "radial path "))
 
 
@@ -49,7 +55,7 @@ def _tag(ds: xr.Dataset, name: str) -> str:
 
 def _stress_paths(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["deviatoric_stress"],
@@ -57,7 +63,7 @@ def _stress_paths(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {_name(path)}",
+            label=f"DEM {path_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -75,7 +81,7 @@ def _stress_paths(ax, series, runs, probes, model_probes):
 
 def _compressibility(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["specific_volume"],
@@ -83,7 +89,7 @@ def _compressibility(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {_name(path)}",
+            label=f"DEM {path_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -102,7 +108,7 @@ def _compressibility(ax, series, runs, probes, model_probes):
 
 def _fabric(ax, series, runs, probes, model_probes):
     for path, ds in series.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["fabric"],
@@ -110,7 +116,7 @@ def _fabric(ax, series, runs, probes, model_probes):
             color=c,
             ms=4,
             mfc="none",
-            label=f"DEM {_name(path)}",
+            label=f"DEM {path_name(path)}",
         )
         if path in runs:
             r = runs[path]
@@ -123,7 +129,7 @@ def _fabric(ax, series, runs, probes, model_probes):
 
 def _moduli(ax, series, runs, probes, model_probes):
     for path, ds in probes.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(ds["mean_stress"], ds["e_oed_v"], "s", color=c, ms=4, label=f"DEM E_oed,v {path}")
         ax.plot(ds["mean_stress"], ds["e_oed_h"], "^", color=c, ms=4, label=f"DEM E_oed,h {path}")
         if path in model_probes:
@@ -147,7 +153,7 @@ def _moduli(ax, series, runs, probes, model_probes):
                 label=f"TIV at DEM states E_h ({_tag(m, 'e_oed_h')})",
             )
     for path, r in runs.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(
             r["mean_stress"],
             r["e_oed_v"],
@@ -173,14 +179,14 @@ def _moduli(ax, series, runs, probes, model_probes):
 
 def _anisotropy(ax, series, runs, probes, model_probes):
     for path, ds in probes.items():
-        c = _colour(path)
+        c = path_colour(path)
         ax.plot(
             ds["mean_stress"],
             ds["e_oed_h"] / ds["e_oed_v"],
             "o",
             color=c,
             ms=4,
-            label=f"DEM {_name(path)}",
+            label=f"DEM {path_name(path)}",
         )
         if path in model_probes:
             m = model_probes[path]
@@ -197,7 +203,7 @@ def _anisotropy(ax, series, runs, probes, model_probes):
             r["mean_stress"],
             r["stiffness_ratio"],
             "-",
-            color=_colour(path),
+            color=path_colour(path),
             label=f"TIV run {path} ({_tag(r, 'stiffness_ratio')})",
         )
     ax.axhline(1.0, color="0.7", lw=0.5)

@@ -146,9 +146,18 @@ def _open(path: Path, kind: str) -> xr.Dataset:
     return open_history(path) if kind == "history" else open_probes(path)
 
 
-def _stress_scale(
+def stress_scale_of(
     options: PipelineOptions, history: xr.Dataset, path: Path, probes: xr.Dataset | None = None
 ) -> tuple[float, str]:
+    """The stress scale S (kPa per DEM stress unit) of one run, and how it was found.
+
+    In order: ``options.stress_scale_kpa`` when given; else the attribute ``stress_scale_kpa``
+    of ``history`` (the file ``path``, named in the note and the error); else 1.0 when every
+    stress and modulus read (the history's and, with ``probes``, the probes' moduli of
+    ``options.probe_method``) has a pressure unit (:mod:`bridge.units`); else
+    :class:`bridge.series.SeriesError` naming what is in DEM units. Returns (S, a note for the
+    report, e.g. ``"from the attribute stress_scale_kpa of relaxed_states.nc"``).
+    """
     if options.stress_scale_kpa is not None:
         return float(options.stress_scale_kpa), "given as an option"
     value = history.attrs.get("stress_scale_kpa")
@@ -220,7 +229,7 @@ def calibrate_from_results(
         used_history = sibling
     history = _open(used_history, "history")
     probes_data = None if probes_path is None else _open(Path(probes_path), "probes")
-    scale, scale_note = _stress_scale(options, history, used_history, probes_data)
+    scale, scale_note = stress_scale_of(options, history, used_history, probes_data)
     convention = Convention(scale, options.convention, options.fabric_scale)
     available, reasons = [], {}
     for path in PATHS:

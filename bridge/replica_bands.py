@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from .pipeline import PipelineOptions, _stress_scale
+from .pipeline import PipelineOptions, stress_scale_of
 from .replicas import PROBES, RELAXED, aligned_replicas, history_stage, nan_mean, replica_runs
 from .series import PATHS, RADIAL_STAGE, Convention, check_layout
 from .units import checked
@@ -175,8 +175,9 @@ def replica_bands(
     ``runs``: run folders or sweep folders (:func:`bridge.replicas.replica_runs`: at least two
     runs, else :class:`bridge.series.SeriesError`; misaligned stages are refused naming the run
     and the stage). ``stress_scale_kpa``: None reads each run's own (its ``relaxed_states.nc``
-    attribute, as the calibration does); ``convention``, ``fabric_scale``: see
-    :class:`bridge.series.Convention`; ``probe_method``: ``"linear"`` or ``"dynamic"`` moduli.
+    attribute, as the calibration does: :func:`bridge.pipeline.stress_scale_of`);
+    ``convention``, ``fabric_scale``: see :class:`bridge.series.Convention`; ``probe_method``:
+    ``"linear"`` or ``"dynamic"`` moduli.
 
     Returns a dataset with dimension ``state`` (the relaxed path states: ``stage``,
     ``state_label``, and each of :data:`STATE_VARIABLES` as its mean and ``<name>_ci95``, the
@@ -190,7 +191,7 @@ def replica_bands(
     options = PipelineOptions(stress_scale_kpa=stress_scale_kpa, probe_method=probe_method)
     conventions = []
     for k, (folder, ds) in enumerate(zip(folders, relaxed, strict=True)):
-        scale, _ = _stress_scale(options, ds, folder / RELAXED, probes[k] if probes else None)
+        scale, _ = stress_scale_of(options, ds, folder / RELAXED, probes[k] if probes else None)
         conventions.append(Convention(scale, convention, fabric_scale))
     states = [
         _model_values(ds, conv, f"replica file {f / RELAXED}")

@@ -17,7 +17,7 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from .figures import _colour, _name  # noqa: E402
+from .figures import path_colour, path_name  # noqa: E402
 from .replica_bands import path_members  # noqa: E402
 
 __all__ = ["figure2", "figure2_markdown", "STUDY"]
@@ -128,7 +128,7 @@ def _dem(ax, bands, members, prefix, y, marker) -> None:
             fmt=marker,
             ms=4,
             xerr=_bar(bands[x + "_ci95"].values[i]),
-            color=_colour(path),
+            color=path_colour(path),
             mfc="none",
             yerr=_bar(bands[f"{prefix}{y}_ci95"].values[i]),
             capsize=2,
@@ -158,7 +158,7 @@ def figure2(bands: xr.Dataset, curves: dict[str, xr.Dataset], label: str = STUDY
     _dem(c, bands, probes, "probe_", "e_oed_h", "^")
     _dem(d, bands, probes, "probe_", "stiffness_ratio", "o")
     for path, r in curves.items():
-        colour, p = _colour(path), r["mean_stress"]
+        colour, p = path_colour(path), r["mean_stress"]
         a.plot(p, r["specific_volume"], "-", color=colour)
         b.plot(p, r["fabric"], "-", color=colour)
         c.plot(p, r["e_oed_v"], "-", color=colour)
@@ -196,7 +196,7 @@ def figure2(bands: xr.Dataset, curves: dict[str, xr.Dataset], label: str = STUDY
         Line2D([], [], color="k", label=label),
     ]
     handles += [
-        Line2D([], [], color=_colour(p), lw=3, label=_name(p))
+        Line2D([], [], color=path_colour(p), lw=3, label=path_name(p))
         for p in dict.fromkeys([*states, *curves])
     ]
     fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 4), fontsize=8)
