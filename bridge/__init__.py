@@ -19,6 +19,13 @@ without Taichi. Modules, in the order of the pipeline:
 - :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
 - :mod:`bridge.pipeline` — ``calibrate_from_results`` (returns a
   :class:`bridge.pipeline_result.PipelineResult`) and ``python -m bridge.pipeline``;
+- :mod:`bridge.replicas` — calibration on replica runs (their record-by-record mean, and the
+  spread of the parameters over the replicas);
+- :mod:`bridge.replica_bands` — the replicas' mean and 95 % interval of the mean, record by
+  record (Student t);
+- :mod:`bridge.study_figure`, :mod:`bridge.study_figure_panels` — the study's Figure 2 over
+  replicas: our mean ± 95 % against the TIV model with Table 1 along our mean paths, and its
+  table (``python -m bridge figure2``);
 - :mod:`bridge.synthetic` — DEM-like results made by the model itself (exact-recovery checks).
 
 Example::

@@ -8,7 +8,7 @@ import pytest
 
 
 def _parsers():
-    from bridge import pipeline
+    from bridge import pipeline, study_figure
     from dem_taichi.cli import commands as cli
     from dem_taichi.protocol import runner as protocol
     from dem_taichi.sweep import command as sweep
@@ -20,6 +20,7 @@ def _parsers():
         "python -m dem_taichi sweep": sweep._parser("python -m dem_taichi sweep"),
         "python -m tiv_model": tiv_cli._parser(),
         "python -m bridge calibrate": pipeline._parser(),
+        "python -m bridge figure2": study_figure._parser(),
     }
 
 
