@@ -37,7 +37,7 @@ from clay_cli import (
 from tiv_model.errors import TivModelError
 from tiv_model.params import DEFAULT_OPTIONS, TABLE1, ModelOptions, Parameters
 
-from .predict import PredictionError
+from .predict import K0_MODES, PredictionError
 from .replica_bands import path_members, replica_bands
 from .runs import RUN_VARIABLES, isotropic_run, k0_run, stress_path_run, unloading_run
 from .series import SERIES_VARIABLES, SeriesError
@@ -48,7 +48,6 @@ __all__ = ["replica_bands", "study_curves", "figure2", "figure2_markdown", "writ
 PROG = "python -m bridge figure2"
 FIGURE = "figure2_replicas.png"
 TABLE = "figure2_replicas.md"
-K0_MODES = ("stress", "element")
 _UNITS = SERIES_VARIABLES | {
     "stiffness_ratio": ("1", "E_oed,h / E_oed,v"),
     "preconsolidation_pressure": ("kPa", "preconsolidation pressure"),
