@@ -16,7 +16,9 @@ class TivModelError(Exception):
     def __init__(self, message: str, state: Any = None) -> None:
         self.state = state
         if state is not None and hasattr(state, "describe"):
-            message = f"{message} [state: {state.describe()}]"
+            described = f"[state: {state.describe()}]"
+            if described not in message:  # a wrapped error of the same state names it once
+                message = f"{message} {described}"
         super().__init__(message)
 
 

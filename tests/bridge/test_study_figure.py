@@ -55,7 +55,7 @@ def bands(replicas):
 
 @pytest.fixture(scope="module")
 def curves(bands):
-    return study_curves(bands, TABLE1, substeps=1)
+    return study_curves(bands, TABLE1, k0_mode="stress", substeps=1)
 
 
 def interval(x):
