@@ -111,12 +111,13 @@ class ProbeResult:
 
 
 def _relax_strict(
-    sim: Simulation, config: ProbingConfig, check_steps: int
+    sim: Simulation, config: ProbingConfig, check_steps: int, ufr: float | None = None
 ) -> tuple[Measures, bool, int]:
+    """Relax at fixed cell to ``ufr`` (default ``[probing] relax_unbalanced_force``)."""
     return relax(
         sim,
         "probe",
-        config.relax_unbalanced_force,
+        config.relax_unbalanced_force if ufr is None else ufr,
         math.inf,
         check_steps,
         config.relax_max_steps,
@@ -236,9 +237,12 @@ def probe_state(
     # relax the copy further, to the probes' own threshold: a path state relaxed only to the
     # path's UFR still creeps, and on a marginal state (K0 near C on the default scene) the
     # creep differs between the + and − probes and swamps the response to small amplitudes
+    # (to linear_relax_unbalanced_force when set and only the linear response probes here)
     dynamic = config.runs_dynamic(label)
     t0 = time.perf_counter()
-    relaxed, ok, _ = _relax_strict(sim, config, protocol.relax_check_steps)
+    relaxed, ok, _ = _relax_strict(
+        sim, config, protocol.relax_check_steps, config.base_relax_unbalanced_force(label)
+    )
     result.base_relaxed = ok
     result.base_stress_change = float(
         max(abs(relaxed["stress_xx"] - measures["stress_xx"]),
@@ -384,6 +388,11 @@ def probes_dataset(
         plateau_rule=rule,
         linear_sliding_contacts=config.sliding_contacts,
         dynamic_probe_relax_unbalanced_force=config.relax_unbalanced_force,
+        linear_probe_relax_unbalanced_force=(
+            config.relax_unbalanced_force
+            if config.linear_relax_unbalanced_force is None
+            else config.linear_relax_unbalanced_force
+        ),
         dynamic_seconds_total=float(sum(r.dynamic_seconds for r in results)),
         linear_seconds_total=float(sum(r.linear_seconds for r in results)),
     )

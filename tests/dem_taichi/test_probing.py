@@ -145,3 +145,36 @@ def test_dynamic_modulus_rejects_bad_input(packed):
         dynamic_modulus(sim, "z", 1e-6, probing(), PROTOCOL, base)
     with pytest.raises(ValueError, match="amplitude"):
         dynamic_modulus(sim, "x", 0.0, probing(), PROTOCOL, base)
+
+
+def test_a_linear_only_probe_relaxes_to_its_own_threshold(packed):
+    """``linear_relax_unbalanced_force``: where only the linear response probes, the copy is
+    relaxed to that looser threshold (fewer steps, nearly the same moduli); where the dynamic
+    sweep runs, the strict ``relax_unbalanced_force`` stays."""
+    from dem_taichi.engine.simulation import CellControl
+    from dem_taichi.protocol.probing import probe_state
+
+    sim, base = packed
+    sim.set_state(base)
+    sim.run(200, CellControl.strain_rate(0.02, stage="isotropic_to_A"))  # moving: not static
+    moving = sim.get_state()
+
+    def probe(config: ProbingConfig):
+        sim.set_state(moving)
+        sim.work = {}
+        result = probe_state(sim, config, PROTOCOL, "A", "isotropic_to_A")
+        steps = sum(int(entry[0]) for entry in sim.work.get("probe", {}).values())
+        sim.work = None
+        return result, steps
+
+    strict, strict_steps = probe(probing(dynamic=False))
+    loose, loose_steps = probe(probing(dynamic=False, linear_relax_unbalanced_force=1e-4))
+    assert 0 < loose_steps < strict_steps
+    for name in ("e_oed_v", "e_oed_h"):
+        assert loose.modulus(name, "linear") == pytest.approx(
+            strict.modulus(name, "linear"), rel=1e-2
+        )
+    config = probing(linear_relax_unbalanced_force=1e-4, dynamic_states="C")
+    assert config.base_relax_unbalanced_force("C") == 1e-8  # the sweep runs at C
+    assert config.base_relax_unbalanced_force("A") == 1e-4
+    assert probing().base_relax_unbalanced_force("A") == 1e-8  # unset: as before
