@@ -388,11 +388,7 @@ def probes_dataset(
         plateau_rule=rule,
         linear_sliding_contacts=config.sliding_contacts,
         dynamic_probe_relax_unbalanced_force=config.relax_unbalanced_force,
-        linear_probe_relax_unbalanced_force=(
-            config.relax_unbalanced_force
-            if config.linear_relax_unbalanced_force is None
-            else config.linear_relax_unbalanced_force
-        ),
+        linear_probe_relax_unbalanced_force=config.linear_only_relax_unbalanced_force,
         dynamic_seconds_total=float(sum(r.dynamic_seconds for r in results)),
         linear_seconds_total=float(sum(r.linear_seconds for r in results)),
     )

@@ -179,13 +179,21 @@ class ProbingConfig(SceneSection):
         """Labels of ``states``, parsed (comma-separated, blanks stripped)."""
         return tuple(s.strip() for s in self.states.split(",") if s.strip())
 
+    @property
+    def linear_only_relax_unbalanced_force(self) -> float:
+        """The UFR of the relaxation before a probe by the linear response alone:
+        ``linear_relax_unbalanced_force`` when set, else ``relax_unbalanced_force``."""
+        if self.linear_relax_unbalanced_force is None:
+            return self.relax_unbalanced_force
+        return self.linear_relax_unbalanced_force
+
     def base_relax_unbalanced_force(self, label: str) -> float:
         """The UFR to which the copy of the state labelled ``label`` is relaxed before it is
         probed: ``relax_unbalanced_force`` where the dynamic sweep runs, else
-        ``linear_relax_unbalanced_force`` when set."""
-        if self.runs_dynamic(label) or self.linear_relax_unbalanced_force is None:
+        :attr:`linear_only_relax_unbalanced_force`."""
+        if self.runs_dynamic(label):
             return self.relax_unbalanced_force
-        return self.linear_relax_unbalanced_force
+        return self.linear_only_relax_unbalanced_force
 
     def runs_dynamic(self, label: str) -> bool:
         """Whether the dynamic sweep runs at the probe labelled ``label``."""
