@@ -30,6 +30,7 @@ __all__ = [
     "STUDY_EV_OVER_P",
     "STUDY_REFERENCE_KPA",
     "STUDY_WINDOW_KPA",
+    "STATE_STRESS_TOLERANCE",
     "StressScale",
     "WindowFit",
     "stress_scale_from_stiffness",
@@ -49,6 +50,9 @@ STUDY_EV_OVER_P = 125.0
 STUDY_REFERENCE_KPA = 100.0
 #: The stress window (kPa) of the windowed fits, both ends included.
 STUDY_WINDOW_KPA = (1.0, 200.0)
+#: Relative distance of a relaxed state's p from a reference stress within which the state
+#: counts as at it: twice the servo's default tolerance (``[protocol] stress_tolerance`` 1e-3).
+STATE_STRESS_TOLERANCE = 2e-3
 
 _NAN = float("nan")
 
@@ -235,14 +239,25 @@ def specific_volume_rectangle(v_disc, n_spheres: int, spacing: float, diameter: 
     return np.asarray(v_disc, dtype=float) * ratio if np.ndim(v_disc) else float(v_disc) * ratio
 
 
-def specific_volume_at(p_kpa, v, p_ref: float = STUDY_REFERENCE_KPA) -> float:
+def specific_volume_at(
+    p_kpa, v, p_ref: float = STUDY_REFERENCE_KPA, rel_tol: float = STATE_STRESS_TOLERANCE
+) -> float:
     """v at the stress ``p_ref`` (kPa) along a path: the study's N when p_ref = 100 kPa.
 
     Interpolated linearly in (ln p, ln v) (exact on a normal compression line v ∝ p^−λ*) on the
     first pair of states (ordered by p) whose p brackets p_ref; NaN when none does (no
-    extrapolation)."""
+    extrapolation). An end state within ``rel_tol`` (relative) of p_ref counts as reaching it:
+    the servo stops each relaxed state within its stress tolerance (``[protocol]
+    stress_tolerance``, 1e-3 by default), so a path whose last state B is at p = 99.95 for 100 still gives
+    N, as v of that state (an error in v of ≈ λ* × rel_tol, ≤ 3e-4 relative at λ* ≤ 0.25)."""
     x, y = _positive_pairs(p_kpa, v)
-    if x.size == 0 or not x[0] <= p_ref <= x[-1]:
+    if x.size == 0:
+        return _NAN
+    if x[-1] < p_ref <= x[-1] * (1.0 + rel_tol):
+        return float(y[-1])
+    if x[0] * (1.0 - rel_tol) <= p_ref < x[0]:
+        return float(y[0])
+    if not x[0] <= p_ref <= x[-1]:
         return _NAN
     k = int(np.searchsorted(x, p_ref, side="left"))
     if x[k] == p_ref:

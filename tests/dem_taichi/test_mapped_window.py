@@ -223,6 +223,16 @@ def test_specific_volume_at_100_kpa():
     assert specific_volume_at(p, v, p_ref=20.0) == pytest.approx(1.30 * 5.0**0.25, rel=1e-12)
 
 
+def test_specific_volume_at_a_path_end_within_the_servo_tolerance():
+    """B stops within the servo's stress tolerance of 100 kPa (p = 99.95): it still gives N, as
+    its own v; beyond the tolerance nothing is extrapolated."""
+    p, v = [1.0, 10.0, 99.95], [2.0, 1.8, 1.6]
+    assert specific_volume_at(p, v) == 1.6
+    assert specific_volume_at([100.1, 300.0], [1.6, 1.5]) == 1.6
+    assert math.isnan(specific_volume_at([1.0, 10.0, 99.7], [2.0, 1.8, 1.6]))
+    assert math.isnan(specific_volume_at(p, v, rel_tol=1e-4))
+
+
 def test_densification_sensitivity():
     """E_B = 100, E_B' = 400, v_B = 2, v_B' = 1: ln 4/ln(1/2) = −2; the study's −2.5 from
     E_B'/E_B = 0.95^−2.5 at v_B'/v_B = 0.95."""
