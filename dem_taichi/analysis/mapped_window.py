@@ -92,15 +92,16 @@ def _positive_pairs(x, y) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _log_crossing(x: np.ndarray, y: np.ndarray, target: float) -> float:
-    """x at which y = target on the first bracketing pair (in rising x) of log y against log x,
-    interpolated linearly in (ln x, ln y); NaN when no pair brackets the target."""
+    """x at which y = target on the last bracketing pair (the highest x, x rising) of log y
+    against log x, interpolated linearly in (ln x, ln y); NaN when no pair brackets the
+    target."""
     ly, lt, lx = np.log(y), math.log(target), np.log(x)
-    for k in range(len(x) - 1):
+    for k in range(len(x) - 2, -1, -1):
         a, b = ly[k] - lt, ly[k + 1] - lt
-        if a == 0.0:
-            return float(x[k])
         if b == 0.0:
             return float(x[k + 1])
+        if a == 0.0:
+            return float(x[k])
         if a * b < 0.0:
             t = a / (a - b)
             return float(math.exp(lx[k] + t * (lx[k + 1] - lx[k])))
@@ -119,11 +120,13 @@ def stress_scale_from_stiffness(
     ``p`` (DEM stress) and ``e_v`` (E_oed,v, DEM stress) at the probed states of the isotropic
     path A→B (state A included). E_v/p is dimensionless, so the DEM stress p* at which
     E_v/p = ``target_ratio`` (the study: 125 at 100 kPa, Table 1) stands for ``reference_kpa``:
-    the scale is reference_kpa/p*. p* is found on the first pair of states (ordered by p) whose
-    E_v/p brackets the target, by linear interpolation of ln(E_v/p) against ln p (exact for a
-    power law E_v ∝ p^n). Without a bracketing pair p* is NaN (``reason`` says why) unless
-    ``allow_extrapolation``: then the least-squares line of ln(E_v/p) on ln p over all states
-    (at least 2, non-zero slope) is solved for the target.
+    the scale is reference_kpa/p*. p* is found on the last pair of states (ordered by p) whose E_v/p
+    brackets the target (the highest p: near A, where the gel is still forming, E_v/p is not
+    monotonic and may cross the target at a few DEM units, e.g. 120 → 221 between p = 3.4 and 7.9 on
+    a 300-rod loose gel), by linear interpolation of ln(E_v/p) against ln p (exact for a power law
+    E_v ∝ p^n). Without a bracketing pair p* is NaN (``reason`` says why) unless
+    ``allow_extrapolation``: then the least-squares line of ln(E_v/p) on ln p over all states (at
+    least 2, non-zero slope) is solved for the target.
     """
     x, y = _positive_pairs(p, e_v)
     ratio = y / x
@@ -246,10 +249,10 @@ def specific_volume_at(
 
     Interpolated linearly in (ln p, ln v) (exact on a normal compression line v ∝ p^−λ*) on the
     first pair of states (ordered by p) whose p brackets p_ref; NaN when none does (no
-    extrapolation). An end state within ``rel_tol`` (relative) of p_ref counts as reaching it:
-    the servo stops each relaxed state within its stress tolerance (``[protocol]
-    stress_tolerance``, 1e-3 by default), so a path whose last state B is at p = 99.95 for 100 still gives
-    N, as v of that state (an error in v of ≈ λ* × rel_tol, ≤ 3e-4 relative at λ* ≤ 0.25)."""
+    extrapolation). An end state within ``rel_tol`` (relative) of p_ref counts as reaching it: the
+    servo stops each relaxed state within its stress tolerance (``[protocol] stress_tolerance``,
+    1e-3 by default), so a path whose last state B is at p = 99.95 for 100 still gives N, as v of
+    that state (an error in v of ≈ λ* × rel_tol, ≤ 5e-4 relative at λ* ≤ 0.25)."""
     x, y = _positive_pairs(p_kpa, v)
     if x.size == 0:
         return _NAN

@@ -50,13 +50,15 @@ def test_stress_scale_interpolates_in_log_log_between_the_bracketing_pair():
     assert s.kpa_per_unit == pytest.approx(50.0, rel=1e-12)
 
 
-def test_stress_scale_takes_the_first_crossing_by_rising_p():
-    """E_v/p = 200, 100, 200, 100 at p = 1, 2, 3, 4: the first crossing is on (1, 2), at
-    ln p* = ln 2 · ln(200/125)/ln(200/100), i.e. p* = 1.6 → 62.5 kPa per unit."""
+def test_stress_scale_takes_the_last_crossing_by_rising_p():
+    """E_v/p = 200, 100, 200, 100 at p = 1, 2, 3, 4: the crossing at the highest p is on (3, 4),
+    at ln p* = ln 3 + ln(4/3) · ln(200/125)/ln(200/100) (the one near A, on (1, 2), is the
+    forming gel's, not the loaded material's)."""
     p = np.array([1.0, 2.0, 3.0, 4.0])
     s = stress_scale_from_stiffness(p, p * np.array([200.0, 100.0, 200.0, 100.0]))
-    assert s.p_star == pytest.approx(1.6, rel=1e-12)
-    assert s.kpa_per_unit == pytest.approx(62.5, rel=1e-12)
+    expected = 3.0 * (4.0 / 3.0) ** (math.log(1.6) / math.log(2.0))
+    assert s.p_star == pytest.approx(expected, rel=1e-12)
+    assert s.kpa_per_unit == pytest.approx(100.0 / expected, rel=1e-12)
 
 
 def test_stress_scale_on_a_state_exactly_at_the_target():
