@@ -91,18 +91,16 @@ def _positive_pairs(x, y) -> tuple[np.ndarray, np.ndarray]:
     return x[ok][order], y[ok][order]
 
 
-def _log_crossing(x: np.ndarray, y: np.ndarray, target: float) -> float:
-    """x at which y = target on the last bracketing pair (the highest x, x rising) of log y
-    against log x, interpolated linearly in (ln x, ln y); NaN when no pair brackets the
-    target."""
+def _falling_log_crossing(x: np.ndarray, y: np.ndarray, target: float) -> float:
+    """x at which a falling y passes target: on the last pair (the highest x, x rising) with
+    y ≥ target at the first and y ≤ target at the second state (not both equal), interpolated
+    linearly in (ln x, ln y); NaN when no pair falls through the target."""
     ly, lt, lx = np.log(y), math.log(target), np.log(x)
     for k in range(len(x) - 2, -1, -1):
         a, b = ly[k] - lt, ly[k + 1] - lt
-        if b == 0.0:
-            return float(x[k + 1])
-        if a == 0.0:
-            return float(x[k])
-        if a * b < 0.0:
+        if a >= 0.0 >= b and a != b:
+            if b == 0.0 or a == 0.0:  # a state exactly at the target
+                return float(x[k + 1] if b == 0.0 else x[k])
             t = a / (a - b)
             return float(math.exp(lx[k] + t * (lx[k + 1] - lx[k])))
     return _NAN
@@ -120,25 +118,30 @@ def stress_scale_from_stiffness(
     ``p`` (DEM stress) and ``e_v`` (E_oed,v, DEM stress) at the probed states of the isotropic
     path A→B (state A included). E_v/p is dimensionless, so the DEM stress p* at which
     E_v/p = ``target_ratio`` (the study: 125 at 100 kPa, Table 1) stands for ``reference_kpa``:
-    the scale is reference_kpa/p*. p* is found on the last pair of states (ordered by p) whose E_v/p
-    brackets the target (the highest p: near A, where the gel is still forming, E_v/p is not
-    monotonic and may cross the target at a few DEM units, e.g. 120 → 221 between p = 3.4 and 7.9 on
-    a 300-rod loose gel), by linear interpolation of ln(E_v/p) against ln p (exact for a power law
-    E_v ∝ p^n). Without a bracketing pair p* is NaN (``reason`` says why) unless
-    ``allow_extrapolation``: then the least-squares line of ln(E_v/p) on ln p over all states (at
-    least 2, non-zero slope) is solved for the target.
+    the scale is reference_kpa/p*. p* is found on the last pair of states (ordered by p) on which
+    E_v/p falls through the target (E_v/p ≥ target at the lower p, ≤ at the higher): the
+    material's stiffness grows more slowly than p (the study's E ∝ p^0.8), whereas near A,
+    where the gel is still forming, E_v/p may rise through the target at a few DEM units (120 →
+    221 between p = 3.4 and 7.9 on a 300-rod loose gel), which says nothing of the loaded
+    material. Interpolated linearly in ln(E_v/p) against ln p (exact for a power law E_v ∝ p^n).
+    Without such a pair p* is NaN (``reason`` says why) unless ``allow_extrapolation``: then the
+    least-squares line of ln(E_v/p) on ln p over all states (at least 2, non-zero slope) is
+    solved for the target.
     """
     x, y = _positive_pairs(p, e_v)
     ratio = y / x
     if x.size == 0:
         return StressScale(_NAN, _NAN, "none", "no state with finite positive p and E_v")
-    p_star = _log_crossing(x, ratio, target_ratio) if x.size > 1 else _NAN
+    p_star = _falling_log_crossing(x, ratio, target_ratio) if x.size > 1 else _NAN
     if np.isfinite(p_star):
         return StressScale(reference_kpa / p_star, p_star, "interpolated")
     span = f"E_v/p from {ratio.min():.4g} to {ratio.max():.4g} over {x.size} states"
     if not allow_extrapolation:
         return StressScale(
-            _NAN, _NAN, "none", f"no pair of states brackets E_v/p = {target_ratio:g} ({span})"
+            _NAN,
+            _NAN,
+            "none",
+            f"E_v/p does not fall through {target_ratio:g} between two states ({span})",
         )
     if x.size < 2 or np.ptp(np.log(x)) == 0.0:
         return StressScale(_NAN, _NAN, "none", f"too few distinct states to extrapolate ({span})")
