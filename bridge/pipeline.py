@@ -51,6 +51,7 @@ from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
 from .calibration.identifiability import identifiability
+from .command_options import add_k0_mode_option, add_model_options
 from .figures import PANELS, write_figures
 from .outputs import (
     MANIFEST,
@@ -422,42 +423,20 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=0.0,
         help="noise SD of --synthetic data: relative, absolute for the fabric (default 0)",
     )
-    parser.add_argument(
-        "--stress-scale",
-        type=positive_float,
-        default=None,
-        help="kPa per DEM stress unit (default: the history's attribute)",
-    )
-    parser.add_argument(
-        "--convention",
-        default="triaxial",
-        choices=("triaxial", "plane"),
-        help="2D → 3D stress convention (bridge.series.Convention; default triaxial)",
-    )
-    parser.add_argument(
-        "--fabric-scale",
-        type=positive_float,
-        default=1.0,
-        help="F of the convention: β_model = −F (β_yy − β_xx) (default 1)",
-    )
-    parser.add_argument(
-        "--probe-method",
-        default="linear",
-        choices=("linear", "dynamic"),
-        help="which DEM moduli the elastic stage fits (default linear: the linear response)",
-    )
-    parser.add_argument(
-        "--anisotropy",
-        default="A",
-        choices=("A", "B"),
-        help="form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
-        "docs/science/tiv-model.md §2; default A)",
-    )
-    parser.add_argument(
-        "--no-constraint-forces",
-        action="store_true",
-        help="set the constraint forces Λ_K to 0 (ModelOptions; default: the exact theory, "
-        "with them)",
+    add_model_options(
+        parser,
+        {
+            "--stress-scale": "kPa per DEM stress unit (default: the history's attribute)",
+            "--convention": "2D → 3D stress convention (bridge.series.Convention; default "
+            "triaxial)",
+            "--fabric-scale": "F of the convention: β_model = −F (β_yy − β_xx) (default 1)",
+            "--probe-method": "which DEM moduli the elastic stage fits (default linear: the "
+            "linear response)",
+            "--anisotropy": "form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
+            "docs/science/tiv-model.md §2; default A)",
+            "--no-constraint-forces": "set the constraint forces Λ_K to 0 (ModelOptions; "
+            "default: the exact theory, with them)",
+        },
     )
     parser.add_argument(
         "--bound-law",
@@ -503,12 +482,9 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=12,
         help="most model increments per K0 fit run (12)",
     )
-    parser.add_argument(
-        "--k0-mode",
-        default="element",
-        choices=("element", "stress"),
-        help="K0 predictions by the K0 element test or driven by the DEM's stresses "
-        "(default element)",
+    add_k0_mode_option(
+        parser,
+        "K0 predictions by the K0 element test or driven by the DEM's stresses (default element)",
     )
     parser.add_argument("--no-figures", action="store_true", help="no figures (default: drawn)")
     parser.add_argument(
