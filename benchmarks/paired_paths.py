@@ -27,12 +27,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
+from jsonable import jsonable  # noqa: E402
 
 if TYPE_CHECKING:
     from dem_taichi.protocol.records import RunLog
@@ -80,16 +83,6 @@ def _findings(result, particles) -> dict:
     for label, entry in states_from_arrays(path.states, probes).items():
         out.update({f"{key}@{label}": value for key, value in entry.items()})
     return out
-
-
-def _jsonable(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -187,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[seed {args.seed}] {name}: branches {wall:.0f} s, steps "
               f"{sum(v.steps for k, v in merged.stages.items() if k != 'isotropic_to_A'):,}",
               flush=True)  # fmt: skip
-        args.out.write_text(json.dumps(_jsonable(report), indent=1))
+        args.out.write_text(json.dumps(jsonable(report), indent=1))
     return 0
 
 

@@ -49,10 +49,14 @@ import json
 import math
 import re
 import statistics
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
+from jsonable import jsonable  # noqa: E402
 
 if TYPE_CHECKING:
     from dem_taichi.engine.simulation import Simulation
@@ -372,16 +376,6 @@ def markdown(rows: list[dict[str, Any]], table: list[dict[str, Any]], command: s
     return "\n".join(lines) + "\n"
 
 
-def _jsonable(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    return value
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", type=Path, nargs="+", metavar="RUN_DIR")
@@ -411,13 +405,11 @@ def main(argv: list[str] | None = None) -> int:
             # written after each state: a run stopped half-way keeps what it measured
             table = summary(rows, thresholds)
             report = {"command": command, "thresholds": thresholds, "summary": table, "rows": rows}
-            args.out.write_text(json.dumps(_jsonable(report), indent=1))
+            args.out.write_text(json.dumps(jsonable(report), indent=1))
             if args.markdown is not None:
                 args.markdown.write_text(markdown(rows, table, command))
     return 0
 
 
 if __name__ == "__main__":
-    import sys
-
     raise SystemExit(main(sys.argv[1:]))

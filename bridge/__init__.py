@@ -7,6 +7,8 @@ without Taichi. Modules, in the order of the pipeline:
   unloading C→B) with a stated, switchable 2D → 3D convention (``"triaxial"`` default,
   ``"plane"``), an explicit stress scale (kPa per DEM unit) and fabric sign/scale
   (β_model = −F (β_yy − β_xx)); the inverse writes DEM-schema datasets of model runs;
+- :mod:`bridge.convention` — that convention (:class:`~bridge.convention.Convention`, both
+  ways) and :class:`~bridge.convention.SeriesError`, re-exported by :mod:`bridge.series`;
 - :mod:`bridge.units` — the units of every variable read from a results file, parsed with
   pint: DEM units (``"1"`` + ``dem_units``) or a pressure unit for stresses and moduli,
   dimensionless for v and fabric; anything else (or no ``units``) refused naming it;
@@ -19,6 +21,9 @@ without Taichi. Modules, in the order of the pipeline:
 - :mod:`bridge.figures`, :mod:`bridge.report` — DEM points vs TIV lines; markdown report;
 - :mod:`bridge.pipeline` — ``calibrate_from_results`` (returns a
   :class:`bridge.pipeline_result.PipelineResult`) and ``python -m bridge.pipeline``;
+- :mod:`bridge.pipeline_options` — what the pipeline is asked to do (``PipelineOptions``)
+  and the stress scale a run's options and files give, re-exported by :mod:`bridge.pipeline`;
+- :mod:`bridge.command_options` — the command-line options ``calibrate`` and ``figure2`` share;
 - :mod:`bridge.replicas` — calibration on replica runs (their record-by-record mean, and the
   spread of the parameters over the replicas);
 - :mod:`bridge.replica_bands` — the replicas' mean and 95 % interval of the mean, record by

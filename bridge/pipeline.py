@@ -34,7 +34,7 @@ import math
 import sys
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 import xarray as xr
@@ -51,6 +51,7 @@ from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
 from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
 from .calibration.identifiability import identifiability
+from .command_options import add_k0_mode_option, add_model_options
 from .figures import PANELS, write_figures
 from .outputs import (
     MANIFEST,
@@ -61,124 +62,27 @@ from .outputs import (
     refuse_links,
     write_netcdf,
 )
+from .pipeline_options import PipelineOptions, pipeline_options, stress_scale_of
 from .pipeline_result import PipelineResult
 from .predict import predict_paths, predict_probes, summary
 from .replicas import calibrate_replicas
 from .report import report_markdown, write_report
 from .series import (
-    HISTORY_REQUIRED,
     PATHS,
-    PROBES_REQUIRED,
     Convention,
     SeriesError,
     all_probe_series,
     history_series,
     radial_series,
 )
-from .units import in_dem_units
 
 PROG = "python -m bridge.pipeline"
-
-
-@dataclass(frozen=True)
-class PipelineOptions:
-    """Everything the pipeline needs besides the files (see the module docstring).
-
-    stress_scale_kpa: kPa per DEM stress unit; None: the history's ``stress_scale_kpa``.
-    convention, fabric_scale: see :class:`bridge.series.Convention`.
-    probe_method: ``"linear"`` or ``"dynamic"`` probe moduli.
-    calibration: :class:`bridge.calibration.CalibrationOptions` (model options inside).
-    stages: calibration stages to run.
-    k0_mode: ``"element"`` (K0 driver) or ``"stress"`` (DEM stress history) for predictions.
-    max_increments: most model increments per predicted path.
-    figures: write the figures.
-    identifiability: profile likelihoods of the fitted parameters
-        (:mod:`bridge.calibration.identifiability`) in ``calibration.json``
-        (``"identifiability"``), the text report and ``report.md``.
-    """
-
-    stress_scale_kpa: float | None = None
-    convention: str = "triaxial"
-    fabric_scale: float = 1.0
-    probe_method: str = "linear"
-    prefer_relaxed_states: bool = True
-    calibration: CalibrationOptions = field(default_factory=CalibrationOptions)
-    stages: tuple[str, ...] = STAGES
-    k0_mode: str = "element"
-    max_increments: int = 40
-    figures: bool = True
-    identifiability: bool = True
-
-
-def pipeline_options(options) -> PipelineOptions:
-    """:class:`PipelineOptions` from None, itself, or a mapping of its fields (a nested mapping
-    under ``"calibration"`` becomes :class:`CalibrationOptions`, one under ``"model_options"``
-    in it :class:`tiv_model.params.ModelOptions`, with ``bound_law`` given by name)."""
-    if options is None:
-        return PipelineOptions()
-    if isinstance(options, PipelineOptions):
-        return options
-    if not isinstance(options, Mapping):
-        raise TypeError(f"options must be PipelineOptions or a mapping, got {type(options)}")
-    known = {f.name for f in fields(PipelineOptions)}
-    unknown = sorted(set(options) - known)
-    if unknown:
-        raise TypeError(f"unknown pipeline option(s) {unknown}; allowed: {sorted(known)}")
-    values = dict(options)
-    calibration = values.get("calibration")
-    if isinstance(calibration, Mapping):
-        calibration = dict(calibration)
-        model = calibration.get("model_options")
-        if isinstance(model, Mapping):
-            model = dict(model)
-            if isinstance(model.get("bound_law"), str):
-                model["bound_law"] = BOUND_LAWS[model["bound_law"]]
-            calibration["model_options"] = ModelOptions(**model)
-        if "fixed" in calibration:
-            calibration["fixed"] = tuple(calibration["fixed"])
-        values["calibration"] = CalibrationOptions(**calibration)
-    return PipelineOptions(**values)
 
 
 def _open(path: Path, kind: str) -> xr.Dataset:
     from dem_taichi.io import open_history, open_probes
 
     return open_history(path) if kind == "history" else open_probes(path)
-
-
-def stress_scale_of(
-    options: PipelineOptions, history: xr.Dataset, path: Path, probes: xr.Dataset | None = None
-) -> tuple[float, str]:
-    """The stress scale S (kPa per DEM stress unit) of one run, and how it was found.
-
-    In order: ``options.stress_scale_kpa`` when given; else the attribute ``stress_scale_kpa``
-    of ``history`` (the file ``path``, named in the note and the error); else 1.0 when every
-    stress and modulus read (the history's and, with ``probes``, the probes' moduli of
-    ``options.probe_method``) has a pressure unit (:mod:`bridge.units`); else
-    :class:`bridge.series.SeriesError` naming what is in DEM units. Returns (S, a note for the
-    report, e.g. ``"from the attribute stress_scale_kpa of relaxed_states.nc"``).
-    """
-    if options.stress_scale_kpa is not None:
-        return float(options.stress_scale_kpa), "given as an option"
-    value = history.attrs.get("stress_scale_kpa")
-    method = options.probe_method
-    dem = []  # what needs the scale: stresses and moduli in DEM units
-    if names := in_dem_units(history, HISTORY_REQUIRED):
-        dem.append(f"history {', '.join(names)}")
-    if probes is not None:
-        moduli = (f"e_oed_v_{method}", f"e_oed_h_{method}", "stiffness_tensor_linear")
-        if names := in_dem_units(probes, PROBES_REQUIRED + moduli):
-            dem.append(f"probes {', '.join(names)}")
-    stresses = all(name in history.variables for name in ("stress_xx", "stress_yy"))
-    if value is None and stresses and not dem:
-        return 1.0, "not needed: every stress and modulus read has a pressure unit"
-    if value is None:
-        raise SeriesError(
-            f"no stress scale: {path} has no global attribute 'stress_scale_kpa' and these "
-            f"are not in a pressure unit: {'; '.join(dem)}; give PipelineOptions("
-            "stress_scale_kpa=...) (--stress-scale), kPa per DEM stress unit"
-        )
-    return float(value), f"from the attribute stress_scale_kpa of {path.name}"
 
 
 def _relative_inside(path, out: Path) -> str | None:
@@ -422,42 +326,20 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=0.0,
         help="noise SD of --synthetic data: relative, absolute for the fabric (default 0)",
     )
-    parser.add_argument(
-        "--stress-scale",
-        type=positive_float,
-        default=None,
-        help="kPa per DEM stress unit (default: the history's attribute)",
-    )
-    parser.add_argument(
-        "--convention",
-        default="triaxial",
-        choices=("triaxial", "plane"),
-        help="2D → 3D stress convention (bridge.series.Convention; default triaxial)",
-    )
-    parser.add_argument(
-        "--fabric-scale",
-        type=positive_float,
-        default=1.0,
-        help="F of the convention: β_model = −F (β_yy − β_xx) (default 1)",
-    )
-    parser.add_argument(
-        "--probe-method",
-        default="linear",
-        choices=("linear", "dynamic"),
-        help="which DEM moduli the elastic stage fits (default linear: the linear response)",
-    )
-    parser.add_argument(
-        "--anisotropy",
-        default="A",
-        choices=("A", "B"),
-        help="form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
-        "docs/science/tiv-model.md §2; default A)",
-    )
-    parser.add_argument(
-        "--no-constraint-forces",
-        action="store_true",
-        help="set the constraint forces Λ_K to 0 (ModelOptions; default: the exact theory, "
-        "with them)",
+    add_model_options(
+        parser,
+        {
+            "--stress-scale": "kPa per DEM stress unit (default: the history's attribute)",
+            "--convention": "2D → 3D stress convention (bridge.series.Convention; default "
+            "triaxial)",
+            "--fabric-scale": "F of the convention: β_model = −F (β_yy − β_xx) (default 1)",
+            "--probe-method": "which DEM moduli the elastic stage fits (default linear: the "
+            "linear response)",
+            "--anisotropy": "form of the anisotropic strain ε̃ in the free energy (ModelOptions, "
+            "docs/science/tiv-model.md §2; default A)",
+            "--no-constraint-forces": "set the constraint forces Λ_K to 0 (ModelOptions; "
+            "default: the exact theory, with them)",
+        },
     )
     parser.add_argument(
         "--bound-law",
@@ -503,12 +385,9 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=12,
         help="most model increments per K0 fit run (12)",
     )
-    parser.add_argument(
-        "--k0-mode",
-        default="element",
-        choices=("element", "stress"),
-        help="K0 predictions by the K0 element test or driven by the DEM's stresses "
-        "(default element)",
+    add_k0_mode_option(
+        parser,
+        "K0 predictions by the K0 element test or driven by the DEM's stresses (default element)",
     )
     parser.add_argument("--no-figures", action="store_true", help="no figures (default: drawn)")
     parser.add_argument(

@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from .pipeline import PipelineOptions, stress_scale_of
+from .pipeline_options import PipelineOptions, stress_scale_of
 from .replicas import PROBES, RELAXED, aligned_replicas, history_stage, nan_mean, replica_runs
 from .series import PATHS, RADIAL_STAGE, Convention, check_layout
 from .units import checked

@@ -30,13 +30,13 @@ from clay_cli import (
     UsageError,
     add_common_flags,
     int_in_range,
-    positive_float,
     replace_file,
     run_command,
 )
 from tiv_model.errors import TivModelError
 from tiv_model.params import DEFAULT_OPTIONS, TABLE1, ModelOptions, Parameters
 
+from .command_options import add_k0_mode_option, add_model_options
 from .predict import K0_MODES, PredictionError
 from .replica_bands import path_members, replica_bands
 from .runs import RUN_VARIABLES, isotropic_run, k0_run, stress_path_run, unloading_run
@@ -232,47 +232,21 @@ def _parser(prog: str = PROG) -> argparse.ArgumentParser:
         "members are the replicas (at least two runs)",
     )
     parser.add_argument("--out", required=True, help="output folder (made if needed)")
-    parser.add_argument(
-        "--stress-scale",
-        type=positive_float,
-        default=None,
-        help="kPa per DEM stress unit for every run (default: each run's own "
-        "attribute stress_scale_kpa)",
+    add_model_options(
+        parser,
+        {
+            "--stress-scale": "kPa per DEM stress unit for every run (default: each run's own "
+            "attribute stress_scale_kpa)",
+            "--convention": "2D → 3D stress convention (default triaxial)",
+            "--fabric-scale": "F of β_model = −F (β_yy − β_xx) (default 1)",
+            "--probe-method": "which DEM moduli (default linear)",
+            "--anisotropy": "the model's form of the anisotropic strain (default A)",
+            "--no-constraint-forces": "the model without constraint forces (default: with them)",
+        },
     )
-    parser.add_argument(
-        "--convention",
-        default="triaxial",
-        choices=("triaxial", "plane"),
-        help="2D → 3D stress convention (default triaxial)",
-    )
-    parser.add_argument(
-        "--fabric-scale",
-        type=positive_float,
-        default=1.0,
-        help="F of β_model = −F (β_yy − β_xx) (default 1)",
-    )
-    parser.add_argument(
-        "--probe-method",
-        default="linear",
-        choices=("linear", "dynamic"),
-        help="which DEM moduli (default linear)",
-    )
-    parser.add_argument(
-        "--anisotropy",
-        default="A",
-        choices=("A", "B"),
-        help="the model's form of the anisotropic strain (default A)",
-    )
-    parser.add_argument(
-        "--no-constraint-forces",
-        action="store_true",
-        help="the model without constraint forces (default: with them)",
-    )
-    parser.add_argument(
-        "--k0-mode",
-        default="element",
-        choices=K0_MODES,
-        help="the model's K0 and unloading: K0 with radial strain 0 through our sigma_a "
+    add_k0_mode_option(
+        parser,
+        "the model's K0 and unloading: K0 with radial strain 0 through our sigma_a "
         "(default element) or along our stresses (stress)",
     )
     parser.add_argument(

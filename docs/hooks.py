@@ -188,8 +188,8 @@ def scene_reference() -> str:
         "behaviour the description gives.",
         "",
         "This page is generated from the code (`docs/hooks.py`); the sections are the dataclasses "
-        "of `dem_taichi.scene.sections`, `dem_taichi.scene.protocol_sections` and "
-        "`dem_taichi.scene.probing_sections`.",
+        "of `dem_taichi.scene.sections`, `dem_taichi.scene.interaction_sections`, "
+        "`dem_taichi.scene.protocol_sections` and `dem_taichi.scene.probing_sections`.",
         "",
     ]
     for name, cls in scene_sections().items():

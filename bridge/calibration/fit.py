@@ -33,8 +33,10 @@ conditional on the parameters of the other stages. Parameters that the data cann
 huge or infinite standard errors and a warning in :meth:`CalibrationResult.report`.
 
 A failed model run inside a stage (tiv_model error: no convergence, v < 1, non-convex energy)
-gives a large constant residual (``penalty``) so the optimiser steps back; a stage that ends
-there fails with :class:`CalibrationError` naming the stage and the model's message.
+gives a large constant residual (``penalty``) so the optimiser steps back; so does a trial point
+where a residual is not finite, e.g. a model modulus ≤ 0 in the elastic stage (the cross term
+D_ra = K − 2G/3 < 0 where g is large against k: no logarithm). A stage that ends there fails
+with :class:`CalibrationError` naming the stage and the model's message.
 """
 
 from __future__ import annotations
@@ -198,7 +200,12 @@ class _Elastic(_Stage):
                     params,
                     self.model_options,
                 )
-            out[f"{path}:ln_{name}"] = np.log(cache[path][name][good]) - ln_e
+            # A trial point may give a model modulus <= 0: the cross term D_ra = K - 2G/3 is
+            # negative where g is large against k. It has no logarithm: its residual is NaN
+            # (-inf at 0), without numpy's warning, and the optimiser's residual function gives
+            # the point the penalty, as a failed model run (module docstring).
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[f"{path}:ln_{name}"] = np.log(cache[path][name][good]) - ln_e
         return out
 
     def scales(self):

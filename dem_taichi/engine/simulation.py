@@ -67,7 +67,13 @@ from typing import Any, Self
 import numpy as np
 
 from dem_taichi.engine.control import AxisControl, CellControl
-from dem_taichi.engine.device_arrays import DEVICE_ARRAYS, kernel_parameters
+from dem_taichi.engine.device_allocation import (
+    allocate_arrays,
+    grow_arrays,
+    initial_capacity,
+    upload_gas,
+)
+from dem_taichi.engine.device_arrays import kernel_parameters
 from dem_taichi.engine.failures import (
     BlowUpError,
     CapacityError,
@@ -183,7 +189,9 @@ class Simulation:
         #: the scene's runtime parameters (the device array ``params`` holds them, with the
         #: run-time changes since: :attr:`parameters`)
         self.scene_parameters = resolved.parameters
-        capacity = neighbour_capacity or self._initial_capacity()
+        capacity = neighbour_capacity or initial_capacity(
+            self.list_radius, self.geometry.diameter, self.full_list
+        )
         self._allocate(capacity, gas.cell_lengths)
         #: what the simulation reports (measures, rods, network), read from its arrays
         self.views = SimulationViews(
@@ -195,24 +203,20 @@ class Simulation:
             self.a, self._launch, self._grow, scene.particles.rod_model, self.body, self.physics,
             self.full_list, self.n_rods, self.n_discs, self.n_bodies, self._real,
         )  # fmt: skip
-        self._upload_gas(gas)
+        upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
         self._prime()
 
     # ------------------------------------------------------------------------------------------
     # set-up
-    def _initial_capacity(self) -> int:
-        # half list: about half the discs within r_list of a disc at the densest packing
-        r = self.list_radius / self.geometry.diameter
-        return (2 if self.full_list else 1) * (int(2.2 * r * r) + 6)
-
     def _allocate(self, capacity: int, cell_lengths: np.ndarray) -> None:
+        """Allocate the device arrays (:mod:`dem_taichi.engine.device_allocation`) and set the
+        constant ones and the runtime parameters."""
         import taichi as ti
 
         real = self.runtime.real
         n, m, ns = self.n_bodies, self.n_discs, self.body.n_spheres
-        nd = ti.ndarray
         self.capacity = int(capacity)
         cells_axis = int(max(cell_lengths) / self.list_radius) + 2
         self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
@@ -220,10 +224,7 @@ class Simulation:
         self._sizes["species"] = self.geometry.n_spheres
         self._sizes["cells"] = cells_axis
         self._dtypes = {"real": real, "i32": ti.i32}
-        self.a: dict[str, Any] = {
-            spec.name: nd(self._dtypes[spec.dtype], spec.shape_for(self._sizes))
-            for spec in DEVICE_ARRAYS
-        }
+        self.a: dict[str, Any] = allocate_arrays(self._sizes, self._dtypes)
         self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))
         self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
@@ -370,38 +371,10 @@ class Simulation:
         """The interacting network (:class:`dem_taichi.physics.snapshot.NetworkSnapshot`)."""
         return self.views.snapshot()
 
-    def _upload_gas(self, gas: GasState) -> None:
-        cell_lengths = np.asarray(gas.cell_lengths, dtype=float)
-        self._check_cell(cell_lengths)
-        reduced = np.asarray(gas.position, dtype=float) / cell_lengths
-        self.a["pos"].from_numpy(reduced.astype(self._real))
-        self.a["angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
-        self.a["vel"].from_numpy(np.asarray(gas.velocity, dtype=self._real))
-        self.a["omega"].from_numpy(np.asarray(gas.angular_velocity, dtype=self._real))
-        self.a["ref_pos"].from_numpy(reduced.astype(self._real))
-        self.a["ref_angle"].from_numpy(np.asarray(gas.angle, dtype=self._real))
-        cell = np.zeros(L.N_CELL)
-        cell[[L.C_LX, L.C_LY]] = cell_lengths
-        cell[[L.C_LBX, L.C_LBY]] = cell_lengths
-        self.a["cell"].from_numpy(cell.astype(self._real))
-        flags = np.zeros(L.N_FLAGS, dtype=np.int32)
-        flags[L.F_FORCE_REBUILD] = 1
-        self.a["flags"].from_numpy(flags)
-
-    def _check_cell(self, cell_lengths: np.ndarray) -> None:
-        reach = self.geometry.length + self.list_radius
-        if np.min(cell_lengths) < 2.0 * self.list_radius + self.geometry.length:
-            raise CapacityError(
-                f"cell lengths {np.round(cell_lengths, 4).tolist()} are too small for the minimum "
-                f"image with rods of length {self.geometry.length} and list radius "
-                f"{self.list_radius:.3g} (need > {2 * self.list_radius + self.geometry.length:.3g}"
-                f"; reach {reach:.3g}): use more rods ([particles] n_rods) or a smaller "
-                "[integration] skin"
-            )
-
     def _launch(self, kernel, **scalars) -> None:
         """Call ``kernel`` with its compile-time and scalar arguments (``scalars``, by name) and
-        every device array its other parameters name (:data:`DEVICE_ARRAYS`)."""
+        every device array its other parameters name
+        (:data:`dem_taichi.engine.device_arrays.DEVICE_ARRAYS`)."""
         a = self.a
         kernel(*[scalars[n] if n in scalars else a[n] for n in kernel_parameters(kernel)])
 
@@ -438,29 +411,9 @@ class Simulation:
         return False
 
     def _grow(self, capacity: int) -> None:
-        import taichi as ti
-
-        limit = 4096
-        if capacity > limit:
-            raise CapacityError(
-                f"a disc has {capacity} list neighbours (limit {limit}): the packing or the "
-                "list radius is unphysical; reduce [integration] skin or the long-range range "
-                "(f_max / k_a)"
-            )
-        sizes = dict(self._sizes, capacity=capacity)
-        for spec in DEVICE_ARRAYS:
-            if not spec.grows:
-                continue
-            shape = spec.shape_for(sizes)
-            grown = ti.ndarray(self._dtypes[spec.dtype], shape)
-            if spec.copy_on_growth:
-                old = self.a[spec.name].to_numpy()
-                new = np.zeros(shape, dtype=old.dtype)
-                keep = min(capacity, old.shape[1])
-                new[:, :keep] = old[:, :keep]
-                grown.from_numpy(new)
-            self.a[spec.name] = grown
-        self._sizes = sizes
+        """Grow the neighbour-list arrays to ``capacity`` entries per disc
+        (:func:`dem_taichi.engine.device_allocation.grow_arrays`)."""
+        self._sizes = grow_arrays(self.a, self._sizes, self._dtypes, capacity)
         self.capacity = capacity
 
     def _raise_blowup(self, flags: np.ndarray, step_offset: int) -> None:

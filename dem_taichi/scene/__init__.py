@@ -3,7 +3,8 @@ gas it describes (numpy; no Taichi, no engine).
 
 :class:`~dem_taichi.scene.config.Scene` and :func:`~dem_taichi.scene.config.load_scene`
 (:mod:`~dem_taichi.scene.config`), the section base (:mod:`~dem_taichi.scene.base`), the core
-sections (:mod:`~dem_taichi.scene.sections`), the ``[protocol]`` and ``[probing]`` sections
+sections (:mod:`~dem_taichi.scene.sections`; those of the interactions in
+:mod:`~dem_taichi.scene.interaction_sections`), the ``[protocol]`` and ``[probing]`` sections
 (:mod:`~dem_taichi.scene.protocol_sections`, :mod:`~dem_taichi.scene.probing_sections`), presets
 and command-line options (:mod:`~dem_taichi.scene.presets`, :mod:`~dem_taichi.scene.options`),
 and the rod geometry and starting gas a scene resolves to (:mod:`~dem_taichi.scene.geometry`,

@@ -2,6 +2,7 @@
 clear failures."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -218,3 +219,33 @@ def test_covariance_from_jacobian_matches_inverse_and_flags_undetermined():
     assert np.isfinite(cov[0, 0]) and cov[0, 0] > 0
     assert np.isinf(cov[1, 1]) and np.isinf(cov[2, 2])
     assert np.all(np.diag(cov) >= 0)
+
+
+def test_a_trial_point_with_a_negative_model_modulus_is_a_penalty_not_a_warning(data):
+    """Where g is large against k the model's cross term D_ra = K − 2G/3 is negative: a trial
+    point of the elastic stage (``make demo`` printed numpy's "invalid value encountered in
+    log" for it). Its log residual is NaN without a RuntimeWarning (an error under pytest),
+    and the stage's residual function gives the point the penalty, as a failed model run."""
+    from bridge.calibration import build_stages, fit_stage
+    from bridge.moduli import moduli_at_states
+
+    _, probes = data
+    stage = build_stages({}, probes, CalibrationOptions(), ("elastic",))["elastic"]
+    trial = TRUTH.replace(g=200.0)  # TRUTH: k 70, g 40
+    iso = probes["isotropic"]
+    model = moduli_at_states(
+        iso["axial_stress"].values,
+        iso["radial_stress"].values,
+        iso["specific_volume"].values,
+        iso["fabric"].values,
+        trial,
+    )
+    assert np.all(model["e_cross"] < 0) and np.all(model["e_oed_v"] > 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pieces = stage.pieces(trial)
+        assert np.all(np.isnan(pieces["isotropic:ln_e_cross"]))
+        assert np.all(np.isfinite(pieces["isotropic:ln_e_oed_v"]))
+        # started there, with g alone free, every trial point nearby is a penalty
+        with pytest.raises(CalibrationError, match="non-finite residuals"):
+            fit_stage(stage, trial, ("g",), CalibrationOptions())
