@@ -1,0 +1,53 @@
+"""The `study` scene (issue 19) is cell P8 at the study's size with the stated fits, nothing else:
+a change to the scene file that is not declared here fails."""
+
+from __future__ import annotations
+
+import shlex
+import tomllib
+from pathlib import Path
+
+from dem_taichi.scene.config import scene_to_toml
+from dem_taichi.scene.options import scene_from_options
+
+CELL = Path(__file__).resolve().parents[2] / "benchmarks" / "study_clay_cell_p8.sh"
+
+#: what the study scene changes on P8 at 1520 rods, and why (dem_taichi/scenes/study.toml)
+DECLARED = {
+    # the stiffness level's fit (benchmarks/results/study_clay_stiffness.md), ratios kept
+    ("contact", "k_n"): 7.0e4,
+    ("contact", "k_t"): 1.4e4,
+    ("contact", "rolling_stiffness"): 2.8e4,
+    # the radial paths the calibration needs for the fabric law
+    ("protocol", "radial_stress_ratios"): "0.2, 0.35, 0.5",
+    # cost only, not the trajectory or the moduli beyond 3.5e-5
+    ("protocol", "confirm_increment"): 1.0e-3,
+    ("probing", "linear_relax_unbalanced_force"): 1.0e-5,
+    ("scene", "name"): "study",
+    ("scene", "seed"): 11,
+    ("scene", "description"): "the study's clay: 1520 rods of 8 discs, an aggregated loose gel",
+}
+
+
+def _p8_overrides() -> list[str]:
+    """The ``--set`` values of benchmarks/study_clay_cell_p8.sh (the cell the runs used)."""
+    words = shlex.split(CELL.read_text().split("p8_cell=(", 1)[1].split(")", 1)[0], comments=True)
+    return [w for w in words if w != "--set"]
+
+
+def _flat(scene) -> dict:
+    data = tomllib.loads(scene_to_toml(scene))
+    return {(s, k): v for s, section in data.items() for k, v in section.items()}
+
+
+def test_the_study_scene_is_cell_p8_at_1520_rods_with_the_declared_changes():
+    p8 = scene_from_options(
+        "default",
+        overrides=_p8_overrides()
+        + ["particles.n_rods=1520", "output.every=5000", "output.checkpoint_every=100000"],
+    )
+    study, cell = _flat(scene_from_options("study")), _flat(p8)
+    differing = {key for key in study.keys() | cell.keys() if study.get(key) != cell.get(key)}
+    assert differing == set(DECLARED)
+    assert {key: study[key] for key in DECLARED} == DECLARED
+    assert study[("particles", "n_spheres")] == 8 and study[("particles", "n_rods")] == 1520
