@@ -28,6 +28,7 @@ from dem_taichi.analysis.arrays import (
     stiffness_ratio,
     stress_ratio_at,
 )
+from dem_taichi.analysis.findings import findings_from_arrays
 from dem_taichi.engine.work_profile import work_rows
 
 __all__ = ["write_figures", "write_report", "findings", "compressibility_slope"]
@@ -201,8 +202,11 @@ def _work_lines(result) -> list[str]:
     return lines
 
 
-def write_report(result, path: Path | None = None) -> Path:
-    """Write ``report.md`` of a run (see the module docstring); returns its path."""
+def write_report(
+    result, path: Path | None = None, rod_shape: tuple[int, float, float] | None = None
+) -> Path:
+    """Write ``report.md`` of a run (see the module docstring); returns its path. ``rod_shape``
+    (n_spheres, spacing, diameter) gives N under the rod-rectangle definition (NaN without)."""
     out = Path(result.out_dir)
     path = path or out / "report.md"
     scale = result.stress_scale_kpa
@@ -360,8 +364,50 @@ def write_report(result, path: Path | None = None) -> Path:
             f"{f['methods_max_relative_difference']:.3f}, median "
             f"{f['methods_median_relative_difference']:.3f}."
         )
+    lines += _window_lines(result, rod_shape)
     lines += ["", "## Files", ""]
     for name, file in result.files.items():
         lines.append(f"- {name}: `{file}`")
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _window_lines(result, rod_shape: tuple[int, float, float] | None) -> list[str]:
+    """The report's section on the study's stress window (issue 19): the findings of
+    :func:`~dem_taichi.analysis.findings.mapped_window_findings` over the run's arrays; no
+    section for a run without A→B."""
+    if not result.path_states or "A" not in result.states:
+        return []
+    w = findings_from_arrays(
+        path_arrays(result), probe_arrays(result), result.n_rods, result.stress_scale_kpa,
+        rod_shape,
+    )  # fmt: skip
+    if math.isfinite(w["stress_scale_kpa_measured"]):
+        scale = (
+            f"{_fmt(w['stress_scale_kpa_measured'])} kPa per DEM unit (E_oed,v/p falls through "
+            f"125 at p* = {_fmt(w['p_star'])} DEM units, which stands for 100 kPa)"
+        )
+    else:
+        scale = f"not measured: {w['stress_scale_reason']}"
+    local = ", ".join(
+        f"{_fmt(p, 3)}: {_fmt(x, 3)}"
+        for p, x in zip(w["local_lambda_p_kpa"], w["local_lambda"], strict=True)
+    )
+    return [
+        "",
+        "## On the study's stress window",
+        "",
+        f"- Stress scale by the stiffness: {scale}; used below: "
+        f"{_fmt(w['stress_scale_kpa_used'])} kPa per DEM unit ({w['stress_scale_source']}).",
+        f"- λ* over 1–200 kPa: {_fmt(w['lambda_window'])} ± {_fmt(w['lambda_window_se'], 2)} "
+        f"(standard error, {w['n_window_points']} states); the study: 0.25.",
+        f"- E_oed ∝ p^n over 1–200 kPa: n = {_fmt(w['exponent_window_v'], 3)} (vertical), "
+        f"{_fmt(w['exponent_window_h'], 3)} (horizontal), {w['n_exponent_points']} probes; "
+        "the study: n + r = 0.80.",
+        f"- N (v at 100 kPa along A→B): {_fmt(w['N_disc'])} with the disc-union rod area, "
+        f"{_fmt(w['N_rectangle'])} with the rod rectangle L × d; the study: 1.30.",
+        "- Densification sensitivity ln(E_B′/E_B)/ln(v_B′/v_B): "
+        f"{_fmt(w['densification_sensitivity_v'], 3)} (E_oed,v), "
+        f"{_fmt(w['densification_sensitivity_h'], 3)} (E_oed,h); Table 1 implies ≈ −2.5.",
+        f"- Local λ* = −d ln v/d ln p along A→B (p in kPa: λ*): {local or '—'}.",
+    ]

@@ -377,7 +377,9 @@ def _write_figures_and_report(result: ProtocolResult, sim) -> None:
         result.files.update(write_figures(result, sim.geometry))
     except Exception as exc:  # noqa: BLE001 - figures must not lose a finished run
         result.files["figures_error"] = f"{type(exc).__name__}: {exc}"
-    result.files["report"] = str(write_report(result))
+    rods = sim.scene.particles
+    shape = (rods.n_spheres, rods.spacing, rods.diameter)
+    result.files["report"] = str(write_report(result, rod_shape=shape))
 
 
 def _parser(prog: str) -> argparse.ArgumentParser:

@@ -177,6 +177,19 @@ def test_outputs_written_with_schema(run, tmp_path):
     for words in ("## Stages", "## Fluid–solid transition", "| B' |", "## Findings"):
         assert words in report
     assert "error" not in " ".join(run.files)
+    # the study's stress window: the numbers the folder's findings give (issue 19)
+    from dem_taichi.analysis.findings import run_findings
+    from dem_taichi.protocol.report import _fmt
+
+    window = run_findings(run.out_dir)
+    assert "## On the study's stress window" in report
+    assert f"- λ* over 1–200 kPa: {_fmt(window['lambda_window'])} ± " in report
+    assert f"n = {_fmt(window['exponent_window_v'], 3)} (vertical)" in report
+    n_line = (
+        f"{_fmt(window['N_disc'])} with the disc-union rod area, "
+        f"{_fmt(window['N_rectangle'])} with the rod rectangle"
+    )
+    assert n_line in report
 
 
 def test_paraview_snapshots_at_the_labelled_states(run):
