@@ -77,6 +77,15 @@ def k0_step_target(
     return max(mean_stress, floor) * ratio, 1.0
 
 
+def beyond_targets(target: float, end: float, p_a: float, n: int) -> np.ndarray:
+    """The mean stresses of a path's increments past its target, up to ``end``: log-spaced, as
+    few as keep each increment's ratio no larger than the path's own, (target/p_a)^(1/n);
+    the last one is ``end`` itself."""
+    ratio = math.log(target / p_a) / n
+    m = max(1, math.ceil(math.log(end / target) / ratio - 1e-9))
+    return target * (end / target) ** (np.arange(1, m + 1) / m)
+
+
 class ProbeHook(Protocol):
     """What the runner calls at every relaxed path state to be probed, with the run log it
     records into (``log``: a branch swaps it,
@@ -327,8 +336,11 @@ class ProtocolRunner:
         return self.states["A"].measures
 
     def isotropic_path(self) -> RelaxedState:
-        """A→B: σ_xx = σ_yy = p_k up to ``target_mean_stress`` (state B)."""
-        return self._proportional_path("A_to_B", 0.0, "B", "A_to_B")
+        """A→B: σ_xx = σ_yy = p_k up to ``target_mean_stress`` (state B), then on to
+        ``isotropic_end_stress`` when it is set (unlabelled states of stage A_to_B); returns
+        state B."""
+        end = self.config.isotropic_end_stress
+        return self._proportional_path("A_to_B", 0.0, "B", "A_to_B", beyond=end)
 
     def k0_path(self) -> RelaxedState:
         """A→C: ε_xx fixed, σ_yy servoed; the last target is p = ``target_mean_stress`` (C)."""
@@ -414,27 +426,41 @@ class ProtocolRunner:
         """From A, p log-spaced to ``target_mean_stress`` at constant η (state R<index>_end)."""
         return self._proportional_path("radial", eta, f"R{index}_end", f"radial η={eta:g}")
 
-    def _proportional_path(self, stage: str, eta: float, end_label: str, tag: str) -> RelaxedState:
+    def _proportional_path(
+        self, stage: str, eta: float, end_label: str, tag: str, beyond: float | None = None
+    ) -> RelaxedState:
         """From A, both axes servoed to σ = p_k (1 ∓ η/2), p_k log-spaced to the target mean
-        stress (η = q/p with q = σ_yy − σ_xx; η = 0 is the isotropic path)."""
+        stress (η = q/p with q = σ_yy − σ_xx; η = 0 is the isotropic path), labelled
+        ``end_label`` there; with ``beyond`` (a p above the target), on to it in log-spaced
+        increments no larger than the path's own (:func:`beyond_targets`), unlabelled. Returns
+        the labelled state."""
         t0 = time.perf_counter()
         measures = self._restore_A()
         p_a = measures["mean_stress"]
         self._check_start(p_a)
         n = self.config.path_increments
-        progress = self._begin_stage(tag, n)
-        state = None
-        for k, p in enumerate(self._log_targets(p_a, self.config.target_mean_stress, n), 1):
+        target = self.config.target_mean_stress
+        p_targets = self._log_targets(p_a, target, n)
+        if beyond is not None:
+            p_targets = np.concatenate([p_targets, beyond_targets(target, beyond, p_a, n)])
+        total = len(p_targets)
+        progress = self._begin_stage(tag, total)
+        labelled = None
+        for k, p in enumerate(p_targets, 1):
             targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
-            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures, k == n)
+            # the labelled state and every state past it are held to the final tolerance
+            final = k >= n
+            measures, it = self.servo(stage, (0, 1), np.eye(2), np.array(targets), measures, final)
             self._record(stage).servo_iterations += it
             label = end_label if k == n else ""
             state = self._path_state(label, stage, k, targets, measures, True, it)
-            progress.step(k, f"[{tag}] {k}/{n} p={p:.4g} v={measures['specific_volume']:.4f}")
+            if k == n:
+                labelled = state
+            progress.step(k, f"[{tag}] {k}/{total} p={p:.4g} v={measures['specific_volume']:.4f}")
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
             t0 = time.perf_counter()
         self._record(stage).seconds += time.perf_counter() - t0
         self._end_stage()
-        assert state is not None
-        return state
+        assert labelled is not None
+        return labelled

@@ -77,6 +77,11 @@ class ProtocolConfig(SceneSection):
     - ``path_increments`` [6]: relaxed stress increments (log-spaced in p) along A→B, A→C, radial.
     - ``unloading_increments`` [4]: relaxed increments of q (linear to 0) along C→B.
     - ``radial_stress_ratios`` [""]: comma-separated η = q/p of the radial paths ("" = none).
+    - ``isotropic_end_stress`` [unset]: p at which the isotropic path ends, above
+      ``target_mean_stress``. A→B reaches B as without it (bit for bit), then goes on in
+      log-spaced increments no larger than its own up to this p, so that the study's window
+      (1–200 kPa) has its upper end and E_v/p can be followed past B (the stress scale by the
+      stiffness). The states past B belong to the isotropic path (stage ``A_to_B``, no label).
     - ``run_isotropic``, ``run_k0``, ``run_unloading`` [true]: which paths run (C→B needs K0).
     - ``compression_increment`` [0.02]: per-axis logarithmic strain of a compression increment
       towards A (coarse); refined by halving down to ``min_compression_increment`` [1e-5]
@@ -205,6 +210,23 @@ class ProtocolConfig(SceneSection):
     radial_stress_ratios: str = field(
         default="",
         metadata=_list(doc='η = q/p of the radial paths from A, a list ("" = none)', unit="1"),
+    )
+    isotropic_end_stress: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                None,
+                lo_open=True,
+                doc=(
+                    "p at which the isotropic path ends, above target_mean_stress: A→B goes "
+                    "on past B in increments no larger (in ln p) than its own (unset: it ends "
+                    "at B)"
+                ),
+                unit="force/length",
+            ),
+            "optional": True,
+        },
     )
     run_isotropic: bool = field(default=True, metadata=_doc("run the isotropic path A→B", "-"))
     run_k0: bool = field(default=True, metadata=_doc("run the K0 path A→C (ε_xx = 0)", "-"))
@@ -513,6 +535,12 @@ class ProtocolConfig(SceneSection):
                     f"[protocol] radial_stress_ratios: η = {eta} out of range: allowed (-2, 2) "
                     "(both principal stresses must stay compressive: σ = p (1 ± η/2))"
                 )
+        end = self.isotropic_end_stress
+        if end is not None and not end > self.target_mean_stress:
+            raise SceneError(
+                f"[protocol] isotropic_end_stress = {end!r} is not above target_mean_stress = "
+                f"{self.target_mean_stress!r}: allowed (target_mean_stress, ∞), or leave it unset"
+            )
         if self.save_path_states and not self.save_states:
             raise SceneError("[protocol] save_path_states = true needs save_states = true")
         if self.run_unloading and not self.run_k0:

@@ -760,3 +760,49 @@ def test_the_work_ledger_accounts_for_every_step_of_every_stage(run):
         ("A_to_B", "overhead"),
     }
     assert "## Where the steps go" in (run.out_dir / "report.md").read_text()
+
+
+def test_beyond_targets_are_no_coarser_than_the_path_and_end_at_the_end():
+    """p_A = 1, target 100 in 6 increments (ln ratio ln(100)/6): to 200, one increment of
+    ln 2 < ln(100)/6 suffices; to 10,000 (ln ratio ln(100) = 6 increments' worth), six."""
+    from dem_taichi.protocol.paths import beyond_targets
+
+    one = beyond_targets(100.0, 200.0, 1.0, 6)
+    assert one.tolist() == [200.0]
+    six = beyond_targets(100.0, 1e4, 1.0, 6)
+    assert len(six) == 6 and six[-1] == pytest.approx(1e4, rel=1e-12)
+    steps = np.diff(np.log(np.concatenate([[100.0], six])))
+    assert np.all(steps <= math.log(100.0) / 6 * (1 + 1e-12))
+
+
+def test_isotropic_end_stress_must_be_above_the_target():
+    from dem_taichi.scene.config import SceneError
+
+    with pytest.raises(SceneError, match="isotropic_end_stress = 20.0 is not above"):
+        smoke_protocol_scene(isotropic_end_stress=20.0)
+
+
+def test_the_isotropic_path_past_b_leaves_a_to_b_bitwise_and_ends_at_its_stress(run, tmp_path):
+    """isotropic_end_stress = 50 on the smoke protocol (target 20, A→B only): A, the A→B states
+    and B are bit for bit those of the run without it; the path then goes on, unlabelled, in
+    increments no coarser than its own, to p = 50 within the final tolerance."""
+    from dem_taichi.protocol.paths import beyond_targets
+    from dem_taichi.protocol.runner import run_protocol
+
+    scene = smoke_protocol_scene(
+        isotropic_end_stress=50.0, run_k0=False, run_unloading=False, radial_stress_ratios=""
+    )
+    longer = run_protocol(scene, tmp_path / "longer")
+    assert longer.states["A"].measures == run.states["A"].measures
+    assert longer.states["B"].measures == run.states["B"].measures
+    base = [s.measures for s in run.path_states if s.stage == "A_to_B"]
+    iso = [s for s in longer.path_states if s.stage == "A_to_B"]
+    assert [s.measures for s in iso[: len(base)]] == base
+    past = iso[len(base) :]
+    p_a = run.states["A"].measures["mean_stress"]
+    assert len(past) == len(beyond_targets(20.0, 50.0, p_a, 2)) and len(past) >= 1
+    assert all(s.label == "" for s in past)
+    p = [s.measures["mean_stress"] for s in past]
+    assert p == sorted(p) and p[0] > 20.0
+    assert p[-1] == pytest.approx(50.0, rel=TOL)
+    assert list(longer.states) == ["A", "B"]
