@@ -378,10 +378,13 @@ def _window_lines(result, rod_shape: tuple[int, float, float] | None) -> list[st
     section for a run without A→B."""
     if not result.path_states or "A" not in result.states:
         return []
-    w = findings_from_arrays(
-        path_arrays(result), probe_arrays(result), result.n_rods, result.stress_scale_kpa,
-        rod_shape,
-    )  # fmt: skip
+    try:
+        w = findings_from_arrays(
+            path_arrays(result), probe_arrays(result), result.n_rods, result.stress_scale_kpa,
+            rod_shape,
+        )  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 - the report must not lose a finished run
+        return ["", "## On the study's stress window", "", f"- Not computed: {exc}"]
     if math.isfinite(w["stress_scale_kpa_measured"]):
         scale = (
             f"{_fmt(w['stress_scale_kpa_measured'])} kPa per DEM unit (E_oed,v/p falls through "
