@@ -47,14 +47,10 @@ aggv=(--set protocol.aggregation=time --set protocol.aggregation_time=500
 loose=(--set particles.initial_area_fraction=0.1 --set protocol.aggregation=time
        --set protocol.aggregation_time=1000 --set protocol.aggregation_speed=0.5)
 rescale=(--set protocol.aggregation_thermostat=rescale)
-run() {
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+run() {  # run NAME ARGS...: the default scene with the common arguments
   local name=$1; shift
-  [ -f "$OUT/$name/summary.json" ] && return
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol default --out "$OUT/$name" --quiet "${common[@]}" "$@" \
-    > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  run_protocol "$name" default --quiet "${common[@]}" "$@"
 }
 run RRagg_s11 "${rr[@]}" "${agg[@]}" --set scene.seed=11
 run RR_s11 "${rr[@]}" --set scene.seed=11

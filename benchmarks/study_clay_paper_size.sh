@@ -15,24 +15,13 @@ OUT=${1:?usage: study_clay_paper_size.sh OUT [PYTHON] [ONLY]}
 PY=${2:-python}
 ONLY=${3:-}
 mkdir -p "$OUT"
-cell=(--set particles.initial_speed=0.5 --set protocol.gas_strain_rate=0.002
-      --set 'protocol.radial_stress_ratios=""' --set 'probing.dynamic_states=""'
-      --set probing.every_n_increments=1
-      --set long_range.f_max_edge=300 --set long_range.f_max_inner=300
-      --set long_range.k_a_edge=600 --set long_range.k_a_inner=600
-      --set contact.rolling_stiffness=4e4 --set contact.rolling_friction=0.5
-      --set particles.initial_area_fraction=0.1 --set protocol.aggregation=time
-      --set protocol.aggregation_time=1000 --set protocol.aggregation_speed=0.5
-      --set particles.n_spheres=8 --set particles.n_rods=1520
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_cell_p8.sh"
+cell=("${p8_cell[@]}" --set particles.n_rods=1520
       --set output.every=5000 --set output.checkpoint_every=100000)
-run() {
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+run() {  # run NAME ARGS...: cell P8 at 1520 rods, branches on both cores
   local name=$1; shift
-  [ -f "$OUT/$name/summary.json" ] && return
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol default --out "$OUT/$name" --workers 2 "${cell[@]}" "$@" \
-    > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  run_protocol "$name" default --workers 2 "${cell[@]}" "$@"
 }
 for seed in 11 2 12; do
   run P8_s$seed --set scene.seed=$seed

@@ -16,14 +16,10 @@ PY=${2:-python}
 ONLY=${3:-}
 mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_cell_p8.sh"
-run() {
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+run() {  # run NAME ARGS...: cell P8 on the default scene
   local name=$1; shift
-  [ -f "$OUT/$name/summary.json" ] && return
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol default --out "$OUT/$name" --quiet "${p8_cell[@]}" "$@" \
-    > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  run_protocol "$name" default --quiet "${p8_cell[@]}" "$@"
 }
 for seed in 11 2 12; do
   run K70_s$seed --set contact.k_n=7e4 --set contact.k_t=1.4e4 \

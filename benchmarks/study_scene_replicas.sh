@@ -11,13 +11,10 @@ OUT=${1:?usage: study_scene_replicas.sh OUT [PYTHON] [ONLY]}
 PY=${2:-python}
 ONLY=${3:-}
 mkdir -p "$OUT"
-run() {
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+run() {  # run NAME ARGS...: the study scene, branches on both cores
   local name=$1; shift
-  [ -f "$OUT/$name/summary.json" ] && return
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol study --out "$OUT/$name" --workers 2 "$@" > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  run_protocol "$name" study --workers 2 "$@"
 }
 for seed in 11 2 12; do
   run study_s$seed --set scene.seed=$seed

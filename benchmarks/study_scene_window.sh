@@ -13,16 +13,13 @@ OUT=${1:?usage: study_scene_window.sh OUT [PYTHON] [ONLY]}
 PY=${2:-python}
 ONLY=${3:-}
 mkdir -p "$OUT"
-run() {
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+run() {  # run NAME ARGS...: the study scene's isotropic path alone, to p = 200
   local name=$1; shift
-  [ -f "$OUT/$name/summary.json" ] && return
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol study --out "$OUT/$name" --quiet \
+  run_protocol "$name" study --quiet \
     --set protocol.isotropic_end_stress=200 --set protocol.run_k0=false \
     --set protocol.run_unloading=false --set 'protocol.radial_stress_ratios=""' \
-    --set 'probing.states="A, B"' "$@" > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+    --set 'probing.states="A, B"' "$@"
 }
 for seed in 11 2 12; do
   run iso200_s$seed --set scene.seed=$seed
