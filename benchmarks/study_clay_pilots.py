@@ -24,7 +24,7 @@ import math
 import re
 from pathlib import Path
 
-from dem_taichi.analysis.findings import mean_interval, run_findings, state_findings
+from dem_taichi.analysis.findings import headline_findings, mean_interval
 
 HERE = Path(__file__).resolve().parent
 
@@ -50,11 +50,6 @@ COLUMNS = (
 )
 
 
-def _last(values) -> float:
-    values = list(values or [])
-    return float(values[-1]) if values else math.nan
-
-
 def run_row(folder: Path) -> dict:
     """The findings of one run folder, or ``converged = False`` when it has no summary."""
     named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
@@ -64,17 +59,8 @@ def run_row(folder: Path) -> dict:
     row: dict = {"cell": cell, "seed": int(seed), "converged": False}
     if not (folder / "summary.json").exists():
         return row
-    f = run_findings(folder)
-    row.update({k: v for k, v in f.items() if isinstance(v, int | float)})
+    row.update(headline_findings(folder))
     row["converged"] = True
-    row["ratio_B"] = _last(f["iso_ratio"])
-    row["ratio_C"] = _last(f["k0_ratio"])
-    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
-    # B′ (C unloaded to B's p): its probe's E_h/E_v, paired with the same run's B
-    states = state_findings(folder)
-    row["ratio_Bp"] = states.get("B'", {}).get("e_ratio", math.nan)
-    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - states.get("B", {}).get("e_ratio", math.nan)
-    row["minutes"] = f["seconds"] / 60.0
     return row
 
 

@@ -2,16 +2,17 @@
 
 Usage::
 
-    python scripts/demo.py --out results [--scene default] [--smoke] [--skip-dem]
+    python scripts/demo.py --out results [--scene study_demo] [--workers 2] [--smoke] [--skip-dem]
 
 Writes, under ``--out``:
 
-- ``dem/``    the DEM protocol on a CPU-sized scene (``demo``: 150 rods; ``--smoke``: the
-  ``smoke`` scene): history, relaxed states, probes, configurations (netCDF), Figures 1 and 2 of
-  the study, ``report.md``;
+- ``dem/``    the DEM protocol on a CPU-sized scene (``study_demo``: the study's clay at 300 rods;
+  ``--scene demo``: 150 rigid rods, the cheap option; ``--smoke``: the ``smoke`` scene): history,
+  relaxed states, probes, configurations (netCDF), Figures 1 and 2 of the study, ``report.md``;
 - ``bridge/`` the TIV parameters calibrated on those DEM results, predictions, figures, report;
 - ``tiv/``    the TIV element tests of the study with the Table 1 parameters;
-- ``REPORT.md`` an index with the headline numbers of each part.
+- ``REPORT.md`` the study's findings on this run beside the ``study`` scene's replicas at the
+  study's size and the study's own values, then an index with the headline numbers of each part.
 
 TIV part (:func:`run_tiv_demo`): isotropic compression from 5 kPa to 280 kPa (the normal
 compression line of Table 1 reaches v = 1 at p_c ≈ 286 kPa), K0 loading to σ_v = 250 kPa then
@@ -22,6 +23,8 @@ run also compares form B and the variants without constraint forces at σ_v = 10
 from __future__ import annotations
 
 import argparse
+import csv
+import math
 import sys
 import time
 from pathlib import Path
@@ -35,6 +38,14 @@ import numpy as np  # noqa: E402
 from tiv_model import drivers  # noqa: E402
 from tiv_model.params import TABLE1, ModelOptions  # noqa: E402
 
+ROOT = Path(__file__).resolve().parents[1]
+#: The `study` scene's replicas at the study's size (1520 rods, three seeds): every finding from
+#: the whole protocol (`study_scene.md`), the stress scale from the same seeds' isotropic paths
+#: continued to 200 kPa (`study_scene_window.md`: measured on all three, the protocol's B on one)
+REFERENCE_FILES: tuple[tuple[Path, tuple[str, ...] | None], ...] = (
+    (ROOT / "benchmarks" / "results" / "study_scene_replicas.csv", None),
+    (ROOT / "benchmarks" / "results" / "study_scene_window.csv", ("stress_scale_kpa_measured",)),
+)
 ISOTROPIC_P_MAX = 280.0  # kPa, safely below the v = 1 limit of Table 1 (p_c ≈ 286 kPa)
 K0_SIGMA_V_MAX = 250.0  # kPa
 
@@ -189,22 +200,34 @@ def run_tiv_demo(out_dir: Path, smoke: bool) -> dict:
     return {"files": files, "figures": figures, "report": report, "variants": variants}
 
 
-def run_dem_demo(out_dir: Path, scene: str) -> dict:
-    """Run the DEM virtual experiments of ``scene`` (needs Taichi); returns the run summary."""
+def run_dem_demo(out_dir: Path, scene: str, workers: int = 2) -> dict:
+    """Run the DEM virtual experiments of ``scene`` (needs Taichi); returns the run summary and
+    the study's headline findings of the run (:func:`headline_findings`)."""
+    from dem_taichi.analysis.findings import headline_findings, run_findings
     from dem_taichi.protocol.runner import run_protocol
 
-    _log(f"DEM virtual experiments on scene '{scene}' (CPU) -> {out_dir}")
+    _log(f"DEM virtual experiments on scene '{scene}' (CPU, {workers} workers) -> {out_dir}")
     started = time.perf_counter()
     result = run_protocol(
-        scene, out_dir, progress=True, command=f"scripts/demo.py --scene {scene}", overwrite=True
-    )  # the demo owns its output folder: a rerun replaces it
+        scene, out_dir, progress=True, command=f"scripts/demo.py --scene {scene}",
+        workers=workers, overwrite=True,
+    )  # fmt: skip  # the demo owns its output folder: a rerun replaces it
     _log(f"DEM part done in {time.perf_counter() - started:.1f} s")
+    everything = run_findings(out_dir)
     states = {
         label: {k: float(state.measures[k]) for k in ("mean_stress", "specific_volume",
                                                        "fabric_deviator")}
         for label, state in result.states.items()
     }  # fmt: skip
-    return {"files": dict(result.files), "seconds": result.total_seconds, "states": states}
+    return {
+        "files": dict(result.files),
+        "seconds": result.total_seconds,
+        "states": states,
+        "scene": scene,
+        "n_rods": result.n_rods,
+        "findings": headline_findings(out_dir),
+        "k0_path": list(zip(everything["k0_p"], everything["k0_ratio"], strict=True)),
+    }
 
 
 def run_bridge_demo(dem_dir: Path, out_dir: Path) -> dict:
@@ -221,10 +244,104 @@ def run_bridge_demo(dem_dir: Path, out_dir: Path) -> dict:
     return outcome.to_dict()
 
 
+def _reference(files=REFERENCE_FILES) -> dict[str, tuple[float, float, int]]:
+    """The `study` scene's replica statistics (column → (mean, 95 % half-width, n)) from the saved
+    benchmark tables (:data:`REFERENCE_FILES`: each file, and the columns taken from it, all when
+    None). Empty when the tables are absent (a demo run outside the repository)."""
+    out: dict[str, tuple[float, float, int]] = {}
+    for path, keys in files:
+        if not path.exists():
+            continue
+        with path.open() as handle:
+            row = next(csv.DictReader(handle))
+        for key, value in row.items():
+            if (keys is None or key in keys) and f"{key}_ci95" in row and f"{key}_n" in row:
+                out[key] = (float(value), float(row[f"{key}_ci95"]), int(row[f"{key}_n"]))
+    return out
+
+
+def _number(value: float, digits: int) -> str:
+    return f"{value:.{digits}g}" if math.isfinite(value) else "—"
+
+
+def _interval(stat: tuple[float, float, int] | None, digits: int) -> str:
+    if stat is None:
+        return "—"
+    mean, half, n = stat
+    if n > 1 and math.isfinite(half):
+        return f"{_number(mean, digits)} ± {_number(half, 2)} ({n} seeds)"
+    return f"{_number(mean, digits)} ({n} seed{'s' if n != 1 else ''})"
+
+
+#: (label, key of :func:`headline_findings`, significant digits, the study's value or how it is
+#: read) — the rows of the report's first table
+HEADLINE_ROWS = (
+    ("E_h/E_v at B (isotropic, 100 kPa)", "ratio_B", 3, "≈ 1 (isotropic fabric)"),
+    ("E_h/E_v at C (K0, p = 100 kPa)", "ratio_C", 3, "> 1"),
+    ("C − B (same run)", "ratio_C_minus_B", 2, "> 0"),
+    ("E_h/E_v at B′ (C unloaded to p_B)", "ratio_Bp", 3, "> 1"),
+    ("B′ − B (same run)", "ratio_Bp_minus_B", 2, "> 0"),
+    ("K0 at C", "k0_C", 3, "table1_k0"),
+    ("λ* over 1–200 kPa", "lambda_window", 3, "table1_lambda"),
+    ("E_v ∝ p^n over 1–200 kPa", "exponent_window_v", 3, "table1_exponent"),
+    ("E_v/p at B", "ev_over_p_B", 3, "≈ 125"),
+    ("N (v at 100 kPa), disc area", "N_disc", 3, "table1_N"),
+    ("N, rod rectangle L × d", "N_rectangle", 3, "table1_N"),
+    ("kPa per DEM unit (E_v/p = 125)", "stress_scale_kpa_measured", 3, "—"),
+)
+
+
+def findings_lines(dem: dict, tiv: dict | None, reference: dict | None = None) -> list[str]:
+    """The report's first section: the study's findings on this run, beside the `study` scene's
+    replicas at the study's size and the study's values (Table 1; the Table 1 model's K0 and
+    E_h/E_v at σ_v = 100 kPa from this demo's TIV part)."""
+    f = dem["findings"]
+    reference = _reference() if reference is None else reference
+    table1 = {
+        "table1_lambda": f"{TABLE1.lambda_star:g} (Table 1)",
+        "table1_exponent": f"{TABLE1.n + TABLE1.r:.2f} (n + r, Table 1)",
+        "table1_N": f"{TABLE1.N:g} (Table 1)",
+        "table1_k0": "—",
+    }
+    model = (tiv or {}).get("variants", {}).get("A, constraint forces")
+    if model is not None:
+        table1["table1_k0"] = f"{model['K0 at 100 kPa']:.3f} (Table 1 model, σ_v = 100 kPa)"
+    k0 = ", ".join(f"{p:.3g}: {r:.3f}" for p, r in dem.get("k0_path", []))
+    lines = [
+        "## The study's findings on this run",
+        "",
+        f"Scene `{dem['scene']}` ({dem['n_rods']} rods; DEM stresses read as kPa, 1 DEM unit = "
+        "1 kPa). One sample at this size: its numbers scatter from seed to seed by about the "
+        "intervals of the 300-rod replicas in `benchmarks/results/study_clay_stiffness.md`; the "
+        "middle column is the same material at the study's size over replicas (mean ± 95 %), "
+        "`benchmarks/results/study_scene.md`. Moduli are the linear-response constrained moduli.",
+        "",
+        "| finding | this run | `study` scene, 1520 rods | the study |",
+        "|---|---|---|---|",
+    ]
+    for label, key, digits, study in HEADLINE_ROWS:
+        value = f.get(key, math.nan)
+        lines.append(
+            f"| {label} | {_number(float(value), digits)} | "
+            f"{_interval(reference.get(key), digits)} | {table1.get(study, study)} |"
+        )
+    if k0:
+        lines += ["", f"E_h/E_v along K0 (p in kPa: ratio) on this run: {k0}."]
+    if model is not None:
+        lines.append(
+            f"The Table 1 model along K0: E_h/E_v = {model['E_h/E_v at 100 kPa']:.2f} at "
+            "σ_v = 100 kPa."
+        )
+    return lines + [""]
+
+
 def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
     """``REPORT.md``: what each part wrote, its headline numbers, or why it did not run."""
     lines = ["# Multiscale clay study: demo run", ""]
     dem = parts.get("dem")
+    if isinstance(dem, dict) and "findings" in dem:
+        tiv_part = parts.get("tiv")
+        lines += findings_lines(dem, tiv_part if isinstance(tiv_part, dict) else None)
     lines += ["## DEM virtual experiments", ""]
     if isinstance(dem, dict):
         lines += [f"Wall time {dem['seconds']:.0f} s. Report: `dem/report.md`.", ""]
@@ -268,7 +385,15 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--scene", default="demo", help="DEM scene (built-in name or TOML path)")
+    parser.add_argument(
+        "--scene", default="study_demo",
+        help="DEM scene (built-in name or TOML path; default %(default)s, the study's clay at 300 "
+        "rods; 'demo' for 150 rigid rods, the cheap option)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--workers", type=int, default=2,
+        help="processes for the branches from A (default %(default)s: one per core here)",
+    )  # fmt: skip
     parser.add_argument(
         "--smoke", action="store_true", help="smoke scene and few increments (about a minute)"
     )
@@ -281,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
         parts["dem"] = parts["bridge"] = "skipped (--skip-dem)"
     else:
         scene = "smoke" if args.smoke else args.scene
-        parts["dem"] = run_dem_demo(out / "dem", scene)
+        parts["dem"] = run_dem_demo(out / "dem", scene, args.workers)
         try:
             parts["bridge"] = run_bridge_demo(out / "dem", out / "bridge")
         except Exception as error:  # noqa: BLE001 - the DEM results stay; say why it failed

@@ -62,6 +62,7 @@ __all__ = [
     "path_arrays",
     "probe_arrays",
     "run_findings",
+    "headline_findings",
     "findings_from_arrays",
     "state_findings",
     "states_from_arrays",
@@ -158,6 +159,33 @@ def run_findings(folder: str | Path) -> dict:
     if aniso.exists():
         rows = {r["state"]: r for r in json.loads(aniso.read_text())}
         row["anisotropy_C"] = rows.get("C")
+    return row
+
+
+def headline_findings(folder: str | Path) -> dict:
+    """The study's headline findings of one finished run directory, as plain numbers.
+
+    :func:`run_findings`' numeric values, plus the linear-response anisotropy at the labelled
+    states and its paired changes within the run: ``ratio_B``, ``ratio_C`` (E_oed,h/E_oed,v at
+    the end of A→B and of A→C), ``ratio_C_minus_B``, ``ratio_Bp`` (B′'s probe) and
+    ``ratio_Bp_minus_B`` (B′'s against the same run's B), and ``minutes`` (wall time). NaN for
+    what the run lacks. What the benchmark summaries over replicas and ``make demo`` report.
+    """
+    folder = Path(folder)
+    f = run_findings(folder)
+    row = {k: v for k, v in f.items() if isinstance(v, int | float)}
+
+    def last(values) -> float:
+        values = list(values or [])
+        return float(values[-1]) if values else _NAN
+
+    row["ratio_B"] = last(f.get("iso_ratio"))
+    row["ratio_C"] = last(f.get("k0_ratio"))
+    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
+    states = state_findings(folder)
+    row["ratio_Bp"] = states.get("B'", {}).get("e_ratio", _NAN)
+    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - states.get("B", {}).get("e_ratio", _NAN)
+    row["minutes"] = float(f["seconds"]) / 60.0
     return row
 
 

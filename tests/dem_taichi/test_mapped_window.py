@@ -439,3 +439,23 @@ def test_sweep_dataset_and_summary_carry_the_new_findings(tmp_path):
     assert numbers["ln(E_v B′/B)/ln(v B′/B)"]["mean"] == pytest.approx(-2.5, rel=1e-12)
     with xr.open_dataset(files["dataset"]) as saved:
         assert float(saved["N_disc"][0]) == pytest.approx(1.30, rel=1e-12)
+
+
+def test_headline_findings_pair_the_labelled_states_of_one_run(tmp_path):
+    """The anisotropy at B and B′ (their probes), B′ − B paired within the run, C NaN without a
+    K0 probe, the wall time in minutes, and every numeric finding of run_findings."""
+    from dem_taichi.analysis.findings import headline_findings
+
+    folder = write_run(tmp_path / "run")
+    row = headline_findings(folder)
+    ratio_b = _eh(4.0) / _ev(4.0)
+    ratio_bp = ratio_b * V_B_PRIME_OVER_B  # E_h × V^-1.5 over E_v × V^-2.5
+    assert row["ratio_B"] == pytest.approx(ratio_b, rel=1e-12)
+    assert row["ratio_Bp"] == pytest.approx(ratio_bp, rel=1e-12)
+    assert row["ratio_Bp_minus_B"] == pytest.approx(ratio_bp - ratio_b, rel=1e-9)
+    assert math.isnan(row["ratio_C"]) and math.isnan(row["ratio_C_minus_B"])
+    assert row["minutes"] == pytest.approx(1.0 / 60.0)
+    found = run_findings(folder)
+    for key, value in found.items():
+        if isinstance(value, int | float) and not (isinstance(value, float) and math.isnan(value)):
+            assert row[key] == value, key

@@ -44,3 +44,37 @@ def test_demo_whole_pipeline_on_the_smoke_scene(tmp_path):
     assert "calibration failed" not in index
     for name in ("dem/history.nc", "dem/probes.nc", "dem/report.md", "bridge/report.md"):
         assert (tmp_path / name).stat().st_size > 0, name
+
+
+def test_the_report_opens_with_the_study_findings_beside_the_replicas_and_table1(tmp_path):
+    """REPORT.md's first table: this run's value, the `study` scene's replicas (mean ± 95 % and
+    the seed count, from the saved benchmark tables) and the study's value per finding."""
+    from dem_taichi.analysis.findings import headline_findings
+    from tests.dem_taichi.test_mapped_window import write_run
+
+    demo = load_demo()
+    run = write_run(tmp_path / "dem")
+    dem = {"scene": "study_demo", "n_rods": 300, "findings": headline_findings(run),
+           "k0_path": [(20.0, 1.1), (100.0, 1.4)], "seconds": 60.0, "states": {}}  # fmt: skip
+    reference = {"ratio_C": (1.47, 0.23, 3), "lambda_window": (0.150, 0.017, 3),
+                 "stress_scale_kpa_measured": (0.971, 0.099, 3)}  # fmt: skip
+    tiv = {"variants": {"A, constraint forces": {"K0 at 100 kPa": 0.66, "E_h/E_v at 100 kPa": 2.3,
+                                                  "fabric at 100 kPa": 0.13}}}
+    lines = demo.findings_lines(dem, tiv, reference)
+    text = "\n".join(lines)
+    assert lines[0] == "## The study's findings on this run"
+    rows = {line.split(" | ")[0].lstrip("| "): line for line in lines if line.startswith("| ")}
+    assert "| 1.47 ± 0.23 (3 seeds) | > 1 |" in rows["E_h/E_v at C (K0, p = 100 kPa)"]
+    assert rows["E_h/E_v at C (K0, p = 100 kPa)"].startswith("| E_h/E_v at C (K0, p = 100 kPa) | — |")
+    assert "| 0.25 (Table 1) |" in rows["λ* over 1–200 kPa"]  # the synthetic run's λ* is 0.25 too
+    assert rows["λ* over 1–200 kPa"].startswith("| λ* over 1–200 kPa | 0.25 | 0.15 ± 0.017 (3 seeds)")
+    assert "0.660 (Table 1 model, σ_v = 100 kPa)" in rows["K0 at C"]
+    assert "| 0.80 (n + r, Table 1) |" in rows["E_v ∝ p^n over 1–200 kPa"]
+    assert "| 200 | 0.971 ± 0.099 (3 seeds) |" in rows["kPa per DEM unit (E_v/p = 125)"]
+    assert "20: 1.100, 100: 1.400" in text and "E_h/E_v = 2.30 at σ_v = 100 kPa" in text
+    # the saved tables of the repository give the middle column when none is passed
+    saved = demo._reference()
+    assert saved["ratio_C"][2] == 3 and saved["stress_scale_kpa_measured"][2] == 3
+    index = demo.write_index(tmp_path, {"dem": dem, "bridge": "skipped", "tiv": {**tiv,
+                             "report": tmp_path / "tiv" / "r.md"}})  # fmt: skip
+    assert index.read_text().split("\n")[2] == "## The study's findings on this run"
