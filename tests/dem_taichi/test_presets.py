@@ -22,7 +22,9 @@ from dem_taichi.scene.probing_sections import probing_settings
 from dem_taichi.scene.protocol_sections import protocol_settings
 from dem_taichi.sweep.spec import sweep_from_toml
 
-BUILTIN = ("smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded", "study")
+BUILTIN = (
+    "smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded", "study", "study_demo",
+)
 NUMERICAL_KEYS = {
     "integration.dt_safety",
     "control.inertial_number_max",

@@ -51,3 +51,11 @@ def test_the_study_scene_is_cell_p8_at_1520_rods_with_the_declared_changes():
     assert differing == set(DECLARED)
     assert {key: study[key] for key in DECLARED} == DECLARED
     assert study[("particles", "n_spheres")] == 8 and study[("particles", "n_rods")] == 1520
+
+
+def test_the_demo_scene_is_the_study_scene_at_300_rods():
+    """`make demo` runs the study's material at an affordable size, nothing else changed."""
+    study, demo = _flat(scene_from_options("study")), _flat(scene_from_options("study_demo"))
+    differing = {key for key in study.keys() | demo.keys() if study.get(key) != demo.get(key)}
+    assert differing == {("particles", "n_rods"), ("scene", "name"), ("scene", "description")}
+    assert demo[("particles", "n_rods")] == 300 and demo[("scene", "name")] == "study_demo"
