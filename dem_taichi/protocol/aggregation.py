@@ -20,6 +20,7 @@ from dem_taichi.protocol.quasistatic import (
     rescale_speed,
 )
 from dem_taichi.protocol.records import ProtocolError
+from dem_taichi.protocol.rod_thermostat import rod_speed
 
 __all__ = ["aggregate"]
 
@@ -40,9 +41,11 @@ def aggregate(runner) -> dict:
        (:func:`~dem_taichi.protocol.quasistatic.resample_speed`, the default), rescaled by one
        factor (:func:`~dem_taichi.protocol.quasistatic.rescale_speed`) or refreshed in part, keeping
        exp(−Δt/τ) of each velocity over the check interval Δt (:func:`~dem_taichi.
-       quasistatic.refresh_speed`, τ = ``aggregation_thermostat_time``) or, by cluster, the
+       quasistatic.refresh_speed`, τ = ``aggregation_thermostat_time``), by cluster, the
        clusters' centre-of-mass velocities drawn afresh (:func:`~dem_taichi.protocol.
-       cluster_thermostat.cluster_speed`).
+       cluster_thermostat.cluster_speed`) or, by rod, every rod's rigid-body motion drawn
+       afresh, a bonded rod's discs moving with it (:func:`~dem_taichi.protocol.
+       rod_thermostat.rod_speed`).
 
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
@@ -112,6 +115,8 @@ def aggregate(runner) -> dict:
             refresh_speed(sim, speed, seed, keep)
         elif details["thermostat"] == "clusters":
             cluster_speed(sim, speed, seed)
+        elif details["thermostat"] == "rods":
+            rod_speed(sim, speed, seed)
         else:
             resample_speed(sim, speed, seed)
 

@@ -36,7 +36,11 @@ __all__ = [
     "rescale_speed",
     "resample_speed",
     "refresh_speed",
+    "RESAMPLE_STREAM",
 ]
+
+#: the generator's stream tag of :func:`resample_speed` ("AGGT"), beside the seed and the step
+RESAMPLE_STREAM = 0x41474754
 
 
 def strain_rate_cap(
@@ -164,11 +168,13 @@ def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
     PCG64 seeded by (``seed``, the current step), so the draw is deterministic and a resumed run
     draws what the uninterrupted one drew. Unlike :func:`rescale_speed` it has no memory: a body
     that loses no energy between draws cannot be pumped (docs/science/dem-model.md §1.6).
+    On bonded rods every disc is drawn on its own (the bonds are heated);
+    :func:`dem_taichi.protocol.rod_thermostat.rod_speed` draws whole rods' rigid-body motions.
     """
     state = sim.get_state()
     velocity = state["velocity"]
     before = rms_velocity_component(velocity)
-    rng = np.random.Generator(np.random.PCG64([int(seed), 0x41474754, int(sim.step)]))
+    rng = np.random.Generator(np.random.PCG64([int(seed), RESAMPLE_STREAM, int(sim.step)]))
     drawn = rng.normal(0.0, speed, size=velocity.shape)
     drawn -= drawn.mean(axis=0, keepdims=True)
     omega = state["angular_velocity"]

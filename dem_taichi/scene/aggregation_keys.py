@@ -60,7 +60,14 @@ without them runs (and writes its TOML and hash) as before.
   velocity at the temperature (~N(0, speed²/n_c) per component for n_c rods), its rods' motion
   relative to it left alone, and a free rod a fresh spin: the clusters move as Brownian wholes
   and their insides are not heated; rigid rods only;
-  :func:`dem_taichi.protocol.cluster_thermostat.cluster_speed`.
+  :func:`dem_taichi.protocol.cluster_thermostat.cluster_speed`. "rods": at every check every
+  rod gets a fresh rigid-body motion drawn as "resample" draws a rigid rod's (centre-of-mass
+  velocity ~N(0, speed²) per component, the mean removed, angular velocity ~N(0, speed² M/I),
+  M and I of the whole rod); the discs of a bonded rod are given its rigid-body velocity
+  field v_i = V + Ω × (x_i − X) and ω_i = Ω, so the bonds' stretch, shear and bending rates are
+  zero after each draw (where "resample" draws every disc on its own and heats the bonds); the
+  rods' centre-of-mass rms component is ``aggregation_speed`` as for rigid rods. Rigid rods:
+  "resample" itself, bit for bit; :func:`dem_taichi.protocol.rod_thermostat.rod_speed`.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
@@ -159,13 +166,16 @@ AGGREGATION_KEYS: dict[str, dict[str, Any]] = {
             "rescale",
             "langevin",
             "clusters",
+            "rods",
             doc=(
                 "how aggregation_speed is imposed: 'resample' (unset; Andersen: fresh"
                 " Maxwell velocities at every check), 'rescale' (one factor for the"
                 " whole gas), 'langevin' (a partial refresh at every check: the"
-                " velocities keep their memory over aggregation_thermostat_time) or"
+                " velocities keep their memory over aggregation_thermostat_time),"
                 " 'clusters' (fresh centre-of-mass velocities of the clusters of rods,"
-                " their insides left alone; rigid rods)"
+                " their insides left alone; rigid rods) or 'rods' (a fresh rigid-body"
+                " motion of every rod, a bonded rod's discs moving with it; rigid rods:"
+                " 'resample')"
             ),
         ),
         "optional": True,

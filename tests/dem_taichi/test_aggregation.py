@@ -108,6 +108,7 @@ def test_rescale_speed_sets_the_rms_velocity_component():
         ("rescale", "rescale_speed"),
         ("langevin", "refresh_speed"),
         ("clusters", "cluster_speed"),
+        ("rods", "rod_speed"),
     ],
 )
 def test_speed_is_imposed_at_the_start_and_after_every_check(monkeypatch, thermostat, function):
@@ -492,7 +493,7 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
          ["aggregation_thermostat", "only with aggregation_speed"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
          'aggregation_thermostat = "nose-hoover"\n',
-         ["aggregation_thermostat", "resample", "rescale", "langevin"]),
+         ["aggregation_thermostat", "resample", "rescale", "langevin", "clusters", "rods"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
          'aggregation_thermostat = "langevin"\n',
          ["aggregation_thermostat_time", "'langevin'"]),
