@@ -39,13 +39,19 @@ from tiv_model import drivers  # noqa: E402
 from tiv_model.params import TABLE1, ModelOptions  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The `study` scene's replicas at the study's size (1520 rods, three seeds): every finding from
-#: the whole protocol (`study_scene.md`), the stress scale from the same seeds' isotropic paths
-#: continued to 200 kPa (`study_scene_window.md`: measured on all three, the protocol's B on one)
-REFERENCE_FILES: tuple[tuple[Path, tuple[str, ...] | None], ...] = (
-    (ROOT / "benchmarks" / "results" / "study_scene_replicas.csv", None),
-    (ROOT / "benchmarks" / "results" / "study_scene_window.csv", ("stress_scale_kpa_measured",)),
-)
+RESULTS = ROOT / "benchmarks" / "results"
+#: The replicas beside which the report sets this run (column title → the saved tables and the
+#: columns taken from each, all when None): the demo's scene over three seeds
+#: (`study_demo.md`), and the `study` scene at the study's size over three seeds, every finding
+#: from the whole protocol (`study_scene.md`), the stress scale from the same seeds' isotropic
+#: paths continued to 200 kPa (`study_scene_window.md`: measured on all three)
+REFERENCES: dict[str, tuple[tuple[Path, tuple[str, ...] | None], ...]] = {
+    "`study_demo`, 300 rods": ((RESULTS / "study_demo_replicas.csv", None),),
+    "`study`, 1520 rods": (
+        (RESULTS / "study_scene_replicas.csv", None),
+        (RESULTS / "study_scene_window.csv", ("stress_scale_kpa_measured",)),
+    ),
+}
 ISOTROPIC_P_MAX = 280.0  # kPa, safely below the v = 1 limit of Table 1 (p_c ≈ 286 kPa)
 K0_SIGMA_V_MAX = 250.0  # kPa
 
@@ -227,6 +233,7 @@ def run_dem_demo(out_dir: Path, scene: str, workers: int = 2) -> dict:
         "n_rods": result.n_rods,
         "findings": headline_findings(out_dir),
         "k0_path": list(zip(everything["k0_p"], everything["k0_ratio"], strict=True)),
+        "radial_paths": sum(label.startswith("R") for label in result.states),
     }
 
 
@@ -244,10 +251,10 @@ def run_bridge_demo(dem_dir: Path, out_dir: Path) -> dict:
     return outcome.to_dict()
 
 
-def _reference(files=REFERENCE_FILES) -> dict[str, tuple[float, float, int]]:
-    """The `study` scene's replica statistics (column → (mean, 95 % half-width, n)) from the saved
-    benchmark tables (:data:`REFERENCE_FILES`: each file, and the columns taken from it, all when
-    None). Empty when the tables are absent (a demo run outside the repository)."""
+def _reference(files) -> dict[str, tuple[float, float, int]]:
+    """Replica statistics (column → (mean, 95 % half-width, n)) from saved benchmark tables
+    (``files``: each table, and the columns taken from it, all when None; one entry of
+    :data:`REFERENCES`). Empty when the tables are absent (a demo run outside the repository)."""
     out: dict[str, tuple[float, float, int]] = {}
     for path, keys in files:
         if not path.exists():
@@ -291,12 +298,13 @@ HEADLINE_ROWS = (
 )
 
 
-def findings_lines(dem: dict, tiv: dict | None, reference: dict | None = None) -> list[str]:
-    """The report's first section: the study's findings on this run, beside the `study` scene's
-    replicas at the study's size and the study's values (Table 1; the Table 1 model's K0 and
-    E_h/E_v at σ_v = 100 kPa from this demo's TIV part)."""
+def findings_lines(dem: dict, tiv: dict | None, references: dict | None = None) -> list[str]:
+    """The report's first section: the study's findings on this run, beside replicas (title →
+    statistics; default: :data:`REFERENCES` read from the saved tables) and the study's values
+    (Table 1; the Table 1 model's K0 and E_h/E_v at σ_v = 100 kPa from this demo's TIV part)."""
     f = dem["findings"]
-    reference = _reference() if reference is None else reference
+    if references is None:
+        references = {title: _reference(files) for title, files in REFERENCES.items()}
     table1 = {
         "table1_lambda": f"{TABLE1.lambda_star:g} (Table 1)",
         "table1_exponent": f"{TABLE1.n + TABLE1.r:.2f} (n + r, Table 1)",
@@ -311,19 +319,21 @@ def findings_lines(dem: dict, tiv: dict | None, reference: dict | None = None) -
         "## The study's findings on this run",
         "",
         f"Scene `{dem['scene']}` ({dem['n_rods']} rods; DEM stresses read as kPa, 1 DEM unit = "
-        "1 kPa). One sample at this size: its numbers scatter from seed to seed by about the "
-        "intervals of the 300-rod replicas in `benchmarks/results/study_clay_stiffness.md`; the "
-        "middle column is the same material at the study's size over replicas (mean ± 95 %), "
-        "`benchmarks/results/study_scene.md`. Moduli are the linear-response constrained moduli.",
+        "1 kPa). Beside it, mean ± 95 % over replicas: the demo's scene on three seeds "
+        "(`benchmarks/results/study_demo.md`; one 300-rod sample scatters by about that much) "
+        "and the same material at the study's size (`benchmarks/results/study_scene.md`). "
+        "Moduli are the linear-response constrained moduli; E_v/p = 125 and the anisotropy "
+        "along K0 are the study's DEM, the rest its Table 1.",
         "",
-        "| finding | this run | `study` scene, 1520 rods | the study |",
-        "|---|---|---|---|",
+        "| finding | this run | " + " | ".join(references) + " | the study |",
+        "|---|---|" + "---|" * len(references) + "---|",
     ]
     for label, key, digits, study in HEADLINE_ROWS:
         value = f.get(key, math.nan)
+        replicas = " | ".join(_interval(stats.get(key), digits) for stats in references.values())
         lines.append(
-            f"| {label} | {_number(float(value), digits)} | "
-            f"{_interval(reference.get(key), digits)} | {table1.get(study, study)} |"
+            f"| {label} | {_number(float(value), digits)} | {replicas} | "
+            f"{table1.get(study, study)} |"
         )
     if k0:
         lines += ["", f"E_h/E_v along K0 (p in kPa: ratio) on this run: {k0}."]
@@ -331,6 +341,11 @@ def findings_lines(dem: dict, tiv: dict | None, reference: dict | None = None) -
         lines.append(
             f"The Table 1 model along K0: E_h/E_v = {model['E_h/E_v at 100 kPa']:.2f} at "
             "σ_v = 100 kPa."
+        )
+    if dem.get("radial_paths") == 0:
+        lines.append(
+            "This run has no radial paths: the calibration below cannot determine the fabric "
+            "law's c and s (K0 alone does not identify them); the `study` scene has three."
         )
     return lines + [""]
 

@@ -55,26 +55,42 @@ def test_the_report_opens_with_the_study_findings_beside_the_replicas_and_table1
     demo = load_demo()
     run = write_run(tmp_path / "dem")
     dem = {"scene": "study_demo", "n_rods": 300, "findings": headline_findings(run),
-           "k0_path": [(20.0, 1.1), (100.0, 1.4)], "seconds": 60.0, "states": {}}  # fmt: skip
+           "k0_path": [(20.0, 1.1), (100.0, 1.4)], "seconds": 60.0, "states": {},
+           "radial_paths": 0}  # fmt: skip
     reference = {"ratio_C": (1.47, 0.23, 3), "lambda_window": (0.150, 0.017, 3),
                  "stress_scale_kpa_measured": (0.971, 0.099, 3)}  # fmt: skip
-    tiv = {"variants": {"A, constraint forces": {"K0 at 100 kPa": 0.66, "E_h/E_v at 100 kPa": 2.3,
-                                                  "fabric at 100 kPa": 0.13}}}
-    lines = demo.findings_lines(dem, tiv, reference)
+    small = {"ratio_C": (1.66, 0.37, 3)}
+    tiv = {
+        "variants": {
+            "A, constraint forces": {
+                "K0 at 100 kPa": 0.66,
+                "E_h/E_v at 100 kPa": 2.3,
+                "fabric at 100 kPa": 0.13,
+            }
+        }
+    }
+    lines = demo.findings_lines(dem, tiv, {"300 rods": small, "1520 rods": reference})
     text = "\n".join(lines)
     assert lines[0] == "## The study's findings on this run"
     rows = {line.split(" | ")[0].lstrip("| "): line for line in lines if line.startswith("| ")}
-    assert "| 1.47 ± 0.23 (3 seeds) | > 1 |" in rows["E_h/E_v at C (K0, p = 100 kPa)"]
-    assert rows["E_h/E_v at C (K0, p = 100 kPa)"].startswith("| E_h/E_v at C (K0, p = 100 kPa) | — |")
-    assert "| 0.25 (Table 1) |" in rows["λ* over 1–200 kPa"]  # the synthetic run's λ* is 0.25 too
-    assert rows["λ* over 1–200 kPa"].startswith("| λ* over 1–200 kPa | 0.25 | 0.15 ± 0.017 (3 seeds)")
+    assert "| finding | this run | 300 rods | 1520 rods | the study |" in lines
+    at_c = rows["E_h/E_v at C (K0, p = 100 kPa)"]
+    assert "| 1.66 ± 0.37 (3 seeds) | 1.47 ± 0.23 (3 seeds) | > 1 |" in at_c
+    assert at_c.startswith("| E_h/E_v at C (K0, p = 100 kPa) | — |")  # no K0 probe in the run
+    window = rows["λ* over 1–200 kPa"]
+    assert "| 0.25 (Table 1) |" in window  # the synthetic run's λ* is 0.25 too
+    assert window.startswith("| λ* over 1–200 kPa | 0.25 | — | 0.15 ± 0.017 (3 seeds)")
     assert "0.660 (Table 1 model, σ_v = 100 kPa)" in rows["K0 at C"]
     assert "| 0.80 (n + r, Table 1) |" in rows["E_v ∝ p^n over 1–200 kPa"]
-    assert "| 200 | 0.971 ± 0.099 (3 seeds) |" in rows["kPa per DEM unit (E_v/p = 125)"]
+    assert "| 200 | — | 0.971 ± 0.099 (3 seeds) |" in rows["kPa per DEM unit (E_v/p = 125)"]
     assert "20: 1.100, 100: 1.400" in text and "E_h/E_v = 2.30 at σ_v = 100 kPa" in text
-    # the saved tables of the repository give the middle column when none is passed
-    saved = demo._reference()
-    assert saved["ratio_C"][2] == 3 and saved["stress_scale_kpa_measured"][2] == 3
+    assert "cannot determine the fabric law's c and s" in text
+    # the saved tables of the repository give the replica columns when none are passed
+    saved = {title: demo._reference(files) for title, files in demo.REFERENCES.items()}
+    small, large = saved["`study_demo`, 300 rods"], saved["`study`, 1520 rods"]
+    assert small["ratio_C"][2] == 3 and large["ratio_C"][2] == 3
+    assert large["stress_scale_kpa_measured"][2] == 3  # the isotropic paths to 200 kPa
+    assert small["ratio_C_minus_B"][0] > 0 and large["ratio_C_minus_B"][0] > 0
     index = demo.write_index(tmp_path, {"dem": dem, "bridge": "skipped", "tiv": {**tiv,
                              "report": tmp_path / "tiv" / "r.md"}})  # fmt: skip
     assert index.read_text().split("\n")[2] == "## The study's findings on this run"
