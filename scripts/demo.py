@@ -11,8 +11,8 @@ Writes, under ``--out``:
   relaxed states, probes, configurations (netCDF), Figures 1 and 2 of the study, ``report.md``;
 - ``bridge/`` the TIV parameters calibrated on those DEM results, predictions, figures, report;
 - ``tiv/``    the TIV element tests of the study with the Table 1 parameters;
-- ``REPORT.md`` the study's findings on this run beside the ``study`` scene's replicas at the
-  study's size and the study's own values, then an index with the headline numbers of each part.
+- ``REPORT.md`` the study's findings on this run beside the same material's replicas (300 and
+  1520 rods) and the study's own values, then an index with the headline numbers of each part.
 
 TIV part (:func:`run_tiv_demo`): isotropic compression from 5 kPa to 280 kPa (the normal
 compression line of Table 1 reaches v = 1 at p_c ≈ 286 kPa), K0 loading to σ_v = 250 kPa then

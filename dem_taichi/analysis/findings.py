@@ -166,25 +166,24 @@ def headline_findings(folder: str | Path) -> dict:
     """The study's headline findings of one finished run directory, as plain numbers.
 
     :func:`run_findings`' numeric values, plus the linear-response anisotropy at the labelled
-    states and its paired changes within the run: ``ratio_B``, ``ratio_C`` (E_oed,h/E_oed,v at
-    the end of A→B and of A→C), ``ratio_C_minus_B``, ``ratio_Bp`` (B′'s probe) and
-    ``ratio_Bp_minus_B`` (B′'s against the same run's B), and ``minutes`` (wall time). NaN for
-    what the run lacks. What the benchmark summaries over replicas and ``make demo`` report.
+    states and its paired changes within the run: ``ratio_B``, ``ratio_C``, ``ratio_Bp``
+    (E_oed,h/E_oed,v of the probes at B, C and B′), ``ratio_C_minus_B`` and
+    ``ratio_Bp_minus_B`` (against the same run's B), and ``minutes`` (wall time). Read at the
+    labels, so an isotropic path continued past B (``isotropic_end_stress``) leaves them as
+    they were. NaN for what the run lacks. What the benchmark summaries over replicas and
+    ``make demo`` report.
     """
     folder = Path(folder)
     f = run_findings(folder)
     row = {k: v for k, v in f.items() if isinstance(v, int | float)}
-
-    def last(values) -> float:
-        values = list(values or [])
-        return float(values[-1]) if values else _NAN
-
-    row["ratio_B"] = last(f.get("iso_ratio"))
-    row["ratio_C"] = last(f.get("k0_ratio"))
-    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
     states = state_findings(folder)
-    row["ratio_Bp"] = states.get("B'", {}).get("e_ratio", _NAN)
-    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - states.get("B", {}).get("e_ratio", _NAN)
+
+    def ratio(label: str) -> float:
+        return states.get(label, {}).get("e_ratio", _NAN)
+
+    row["ratio_B"], row["ratio_C"], row["ratio_Bp"] = ratio("B"), ratio("C"), ratio("B'")
+    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
+    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - row["ratio_B"]
     row["minutes"] = float(f["seconds"]) / 60.0
     return row
 

@@ -459,3 +459,21 @@ def test_headline_findings_pair_the_labelled_states_of_one_run(tmp_path):
     for key, value in found.items():
         if isinstance(value, int | float) and not (isinstance(value, float) and math.isnan(value)):
             assert row[key] == value, key
+
+
+def test_headline_findings_read_b_at_its_label_when_the_isotropic_path_goes_on(tmp_path):
+    """With ``isotropic_end_stress`` A→B has probes past B: E_h/E_v at B is still B's probe."""
+    from dem_taichi.analysis.findings import headline_findings
+
+    folder = write_run(tmp_path / "run")
+    probes = xr.load_dataset(folder / "probes.nc")
+    beyond = probes.isel(probe=[len(P_AB)])  # a copy of B's probe, moved on to p = 8, unlabelled
+    beyond["state_label"] = ("probe", np.array([""]))
+    beyond["mean_stress"] = ("probe", np.array([8.0]))
+    beyond["e_oed_h_linear"] = ("probe", np.array([3.0 * _eh(8.0)]))
+    beyond["e_oed_v_linear"] = ("probe", np.array([_ev(8.0)]))
+    order = list(range(len(P_AB) + 1)) + [probes.sizes["probe"]] + [len(P_AB) + 1]
+    extended = xr.concat([probes, beyond], dim="probe").isel(probe=order)
+    extended.to_netcdf(folder / "probes.nc")
+    row = headline_findings(folder)
+    assert row["ratio_B"] == pytest.approx(_eh(4.0) / _ev(4.0), rel=1e-12)
