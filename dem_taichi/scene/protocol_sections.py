@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 
 from dem_taichi.scene.aggregation_keys import AGGREGATION_KEYS, check_aggregation_keys
 from dem_taichi.scene.base import SceneError, SceneSection
-from dem_taichi.scene.base import field_choices as _choices
 from dem_taichi.scene.base import field_doc as _doc
 from dem_taichi.scene.base import field_list as _list
 from dem_taichi.scene.base import field_range as _range
@@ -34,6 +33,7 @@ from dem_taichi.scene.base import field_range as _range
 # the [probing] section's names, defined here up to issue 21: every import of them keeps working
 from dem_taichi.scene.probing_sections import ProbingConfig as ProbingConfig
 from dem_taichi.scene.probing_sections import probing_settings as probing_settings
+from dem_taichi.scene.servo_keys import SERVO_KEYS
 
 __all__ = ["ProtocolConfig", "protocol_settings", "parse_number_list"]
 
@@ -350,124 +350,29 @@ class ProtocolConfig(SceneSection):
             unit="steps",
         ),
     )
-    stress_tolerance: float = field(
-        default=1e-3,
-        metadata=_range(
-            0.0,
-            0.1,
-            lo_open=True,
-            doc="|σ − σ_target| / σ_target allowed at relaxed states",
-            unit="1",
-        ),
-    )
+    # the stress servo's keys (also unbalanced_force_max, inertial_number_safety below): their
+    # metadata in scene/servo_keys.py
+    stress_tolerance: float = field(default=1e-3, metadata=SERVO_KEYS["stress_tolerance"])
     path_stress_tolerance: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                0.1,
-                lo_open=True,
-                doc=(
-                    "|σ − σ_target| / σ_target allowed at the relaxed states inside a path "
-                    "(unset: stress_tolerance; a path's end keeps stress_tolerance)"
-                ),
-                unit="1",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=SERVO_KEYS["path_stress_tolerance"]
     )
-    servo_time: float = field(
-        default=2.0,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc="time constant T of the stress servo, ε̇ = C⁻¹ (σ_target − σ) / T",
-            unit="time",
-        ),
-    )
-    servo_near_target: float = field(
-        default=0.05,
-        metadata=_range(
-            0.0,
-            1.0,
-            lo_open=True,
-            doc=(
-                "hunting detection: the residual counts as near within this fraction of the target"
-            ),
-            unit="1",
-        ),
-    )
-    servo_stall_times: float = field(
-        default=10.0,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc="servo times T without settling after which T is doubled",
-            unit="1",
-        ),
-    )
-    servo_time_max_factor: float = field(
-        default=64.0,
-        metadata=_range(1.0, doc="largest servo time, as a multiple of servo_time", unit="1"),
-    )
-    servo_stiffness: str = field(
-        default="elastic",
-        metadata=_choices(
-            "elastic",
-            "secant",
-            doc=(
-                "stiffness of the servo's rate law: 'elastic' the linear response C of "
-                "the relaxed network, 'secant' s C with s the measured secant/elastic "
-                "ratio"
-            ),
-        ),
-    )
-    servo_softening_min: float = field(
-        default=0.01,
-        metadata=_range(
-            0.0,
-            1.0,
-            lo_open=True,
-            doc="smallest secant/elastic ratio s of the secant servo",
-            unit="1",
-        ),
-    )
-    servo_check_steps: int = field(
-        default=100, metadata=_range(1, doc="steps between servo updates", unit="steps")
-    )
-    servo_max_steps: int = field(
-        default=2_000_000,
-        metadata=_range(
-            1, doc="most steps to reach one stress target (then an error)", unit="steps"
-        ),
-    )
+    servo_time: float = field(default=2.0, metadata=SERVO_KEYS["servo_time"])
+    servo_near_target: float = field(default=0.05, metadata=SERVO_KEYS["servo_near_target"])
+    servo_stall_times: float = field(default=10.0, metadata=SERVO_KEYS["servo_stall_times"])
+    servo_time_max_factor: float = field(default=64.0, metadata=SERVO_KEYS["servo_time_max_factor"])
+    servo_stiffness: str = field(default="elastic", metadata=SERVO_KEYS["servo_stiffness"])
+    servo_softening_min: float = field(default=0.01, metadata=SERVO_KEYS["servo_softening_min"])
+    servo_check_steps: int = field(default=100, metadata=SERVO_KEYS["servo_check_steps"])
+    servo_max_steps: int = field(default=2_000_000, metadata=SERVO_KEYS["servo_max_steps"])
     load_steps_min: int = field(
         default=200,
         metadata=_range(
             1, doc="fewest steps over which a strain increment is applied", unit="steps"
         ),
     )
-    unbalanced_force_max: float = field(
-        default=0.1,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc=("unbalanced-force ratio limit while loading; above it the servo rate is halved"),
-            unit="1",
-        ),
-    )
+    unbalanced_force_max: float = field(default=0.1, metadata=SERVO_KEYS["unbalanced_force_max"])
     inertial_number_safety: float = field(
-        default=0.5,
-        metadata=_range(
-            0.0,
-            1.0,
-            lo_open=True,
-            doc="the rates are capped at this fraction of [control] inertial_number_max",
-            unit="1",
-        ),
+        default=0.5, metadata=SERVO_KEYS["inertial_number_safety"]
     )
     save_states: bool = field(
         default=True,
