@@ -108,12 +108,16 @@ def test_a_moved_run_folder_resumes_in_worker_processes(interrupted, tmp_path):
     """The run folder moved elsewhere, a decoy left where it was (a reused folder whose
     ``state_A.npz`` is not this run's), and the missing branches run in spawned processes: they
     read state A inside the moved folder, merge in their place among the saved ones, and the
-    outputs again equal the reference bit for bit."""
+    outputs again equal the reference bit for bit.
+
+    The two short branches (A→B, the radial path) are the missing ones, one per process, and
+    the long one (A→C→B', saved by the resume above) merges between them; run alone, this test
+    finds it unsaved and runs all three."""
     import shutil
 
     from dem_taichi.protocol.runner import run_protocol
 
-    for index in (1, 2):
+    for index in (0, 2):
         (interrupted / "resume" / f"branch_{index}.npz").unlink(missing_ok=True)
     _release_runs()
     moved = tmp_path / "moved"
@@ -122,6 +126,7 @@ def test_a_moved_run_folder_resumes_in_worker_processes(interrupted, tmp_path):
     interrupted.mkdir()
     (interrupted / "state_A.npz").write_bytes(b"a file of another run, not a checkpoint")
     result = run_protocol(smoke_protocol_scene(), moved, resume=True, workers=2)
+    assert (moved / "resume" / "branch_0.npz").exists()
     assert (moved / "resume" / "branch_2.npz").exists()
     assert result.files["state_A"] == str(moved / "state_A.npz")
     assert all(str(interrupted) not in path for path in result.files.values())
