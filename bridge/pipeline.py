@@ -162,6 +162,7 @@ def calibrate_from_results(
     seconds_calibration = time.perf_counter() - t0
     ide = identifiability(result, series, probes) if options.identifiability else None
     model_options = options.calibration.model_options
+    failures: dict[str, str] = {}  # a path the calibrated model cannot follow loses no other
     runs = predict_paths(
         result,
         series,
@@ -169,6 +170,7 @@ def calibrate_from_results(
         options.k0_mode,
         options.max_increments,
         options.calibration.initial_fabric,
+        failures,
     )
     model_probes = predict_probes(result, probes, model_options) if probes else {}
     files: dict[str, str] = {}
@@ -197,6 +199,8 @@ def calibrate_from_results(
         "stages": ", ".join(stages),
         "model fabric at A": options.calibration.initial_fabric,
     }
+    if failures:
+        description["predictions not run"] = "; ".join(f"{p}: {r}" for p, r in failures.items())
     text = report_markdown(result, runs, model_probes, probes, description, figures, out, ide)
     files["report"] = str(write_report(outputs.path("report.md"), text))
     extra = "" if ide is None else "\n[[What the data determine]]\n" + ide.statement() + "\n"

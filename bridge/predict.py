@@ -135,8 +135,14 @@ def predict_paths(
     k0_mode: str = "element",
     max_increments: int = 40,
     initial_fabric: str = "zero",
+    failures: dict[str, str] | None = None,
 ) -> dict[str, xr.Dataset]:
     """Model runs along each DEM path in ``series`` (see the module docstring).
+
+    ``failures``: None (default), a model run that fails raises :class:`PredictionError`; a dict,
+    the path is left out of the result and the reason stored there under the path's name (the
+    unloading path, which starts at the model's C, then too), so that one path the calibrated
+    model cannot follow does not lose the others.
 
     ``initial_fabric``: the model's β at A, ``"zero"`` or ``"measured"`` (the DEM's β at the
     first point of the path; see :func:`bridge.runs.start_state`).
@@ -155,10 +161,19 @@ def predict_paths(
 
     out: dict[str, xr.Dataset] = {}
     state_c = None
+
+    def failed(path: str, reason: str) -> None:
+        if failures is None:
+            raise PredictionError(f"path {path}: {reason}")
+        failures[path] = reason
+
     for path in ("isotropic", "k0", "unloading"):
         if path not in series:
             continue
         dem = series[path]
+        if path == "unloading" and state_c is None and "k0" in (failures or {}):
+            failed(path, "not run: it starts at the model's C, and the k0 path failed")
+            continue
         try:
             if path == "isotropic":
                 run = isotropic_run(
@@ -205,7 +220,10 @@ def predict_paths(
                 )
                 driver = "stress control from the model's C along the DEM's (p, q) scaled onto it"
         except TivModelError as exc:
-            raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
+            if failures is None:
+                raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
+            failed(path, f"the model run failed: {exc}")
+            continue
         values = {k: run[k] for k in RUN_VARIABLES}
         inputs = _INPUTS[f"k0:{k0_mode}" if path == "k0" else path]
         attrs = {
@@ -225,7 +243,10 @@ def predict_paths(
             start = start_state(p_a, params, options, beta_a(dem))
             run = stress_path_run(sa, sr, params, options, start, max_increments)
         except TivModelError as exc:
-            raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
+            if failures is None:
+                raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
+            failed(path, f"the model run failed: {exc}")
+            continue
         attrs = {
             "kind": "model run",
             "driver": "stress control from the model's A along the DEM's radial path",

@@ -381,6 +381,9 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
             if error is not None and not abs(error) < abs(value):
                 shown += " (not determined by these data)"
             lines.append(f"| {name} | {value:.4g} | {shown} |")
+        failed = (bridge.get("data") or {}).get("predictions not run")
+        if failed:
+            lines += ["", f"Predictions the calibrated model could not run: {failed}"]
     else:
         lines.append(str(bridge))
     lines += ["", "## TIV element tests (Table 1)", ""]

@@ -335,7 +335,11 @@ def _fit_stage(
 
     def residuals(x):
         try:
-            pieces = stage.pieces(make(x))
+            # a trial point far from the data can overflow inside the model's local solve: the
+            # model then rejects the step or fails (TivModelError), and a non-finite or failed
+            # trial gets the penalty below, so numpy's warnings say nothing the fit does not handle
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                pieces = stage.pieces(make(x))
         except (TivModelError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
             failures.append(f"{type(exc).__name__}: {exc}")
             return np.full(n_data, options.penalty)

@@ -185,3 +185,43 @@ def test_options_from_a_mapping():
     assert opts.calibration.model_options.bound_law_name == "tanh"
     with pytest.raises(TypeError, match="unknown pipeline option"):
         pipeline_options({"stress_scale": 1.0})
+
+
+def _k0_fails(monkeypatch):
+    """The model's K0 run raises as a calibrated model past a limit point does."""
+    import bridge.predict
+    from tiv_model.errors import TivModelError
+
+    def fails(*args, **kwargs):
+        raise TivModelError("increment failed after 12 halvings (made to fail)")
+
+    monkeypatch.setattr(bridge.predict, "k0_run", fails)
+
+
+def test_a_path_the_model_cannot_follow_is_recorded_and_loses_no_other(synthetic, monkeypatch):
+    series = history_series(synthetic.history, CONVENTION)
+    _k0_fails(monkeypatch)
+    with pytest.raises(PredictionError, match="path k0: the model run failed: increment failed"):
+        predict_paths(TRUTH, series)  # without a failures dict: raised, as before
+    failures: dict[str, str] = {}
+    runs = predict_paths(TRUTH, series, failures=failures)
+    assert set(runs) == set(series) - {"k0", "unloading"}
+    assert "isotropic" in runs
+    assert failures["k0"].startswith("the model run failed: increment failed after 12 halvings")
+    assert failures["unloading"] == "not run: it starts at the model's C, and the k0 path failed"
+
+
+def test_the_pipeline_keeps_the_calibration_when_a_prediction_fails(
+    synthetic, tmp_path, monkeypatch
+):
+    history, probes = _write_inputs(synthetic, tmp_path / "dem")
+    options = PipelineOptions(fabric_scale=CONVENTION.fabric_scale, calibration=FAST)
+    _k0_fails(monkeypatch)  # the prediction's K0 run only (the calibration runs its own)
+    outcome = calibrate_from_results(history, probes, tmp_path / "out", options)
+    assert outcome["parameters"]["k"] == pytest.approx(TRUTH.k, rel=1e-8)
+    assert "k0: the model run failed" in outcome["data"]["predictions not run"]
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "predictions not run" in report and "unloading: not run" in report
+    assert (tmp_path / "out" / "calibration.json").exists()
+    assert (tmp_path / "out" / "prediction_isotropic.nc").exists()
+    assert not (tmp_path / "out" / "prediction_k0.nc").exists()
