@@ -377,7 +377,7 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
         lines += ["", "| parameter | value | standard error |", "|---|---|---|"]
         for name, value in (bridge.get("parameters") or {}).items():
             error = errors.get(name)
-            shown = "fixed" if error is None else f"{error:.3g}"
+            shown = "— (fixed, or no finite standard error)" if error is None else f"{error:.3g}"
             if error is not None and not abs(error) < abs(value):
                 shown += " (not determined by these data)"
             lines.append(f"| {name} | {value:.4g} | {shown} |")
