@@ -162,9 +162,10 @@ def predict_paths(
     out: dict[str, xr.Dataset] = {}
     state_c = None
 
-    def failed(path: str, reason: str) -> None:
+    def failed(path: str, reason: str, cause: Exception | None = None) -> None:
+        """Raise (no ``failures`` dict) or record why ``path`` has no model run."""
         if failures is None:
-            raise PredictionError(f"path {path}: {reason}")
+            raise PredictionError(f"path {path}: {reason}") from cause
         failures[path] = reason
 
     for path in ("isotropic", "k0", "unloading"):
@@ -220,9 +221,7 @@ def predict_paths(
                 )
                 driver = "stress control from the model's C along the DEM's (p, q) scaled onto it"
         except TivModelError as exc:
-            if failures is None:
-                raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
-            failed(path, f"the model run failed: {exc}")
+            failed(path, f"the model run failed: {exc}", exc)
             continue
         values = {k: run[k] for k in RUN_VARIABLES}
         inputs = _INPUTS[f"k0:{k0_mode}" if path == "k0" else path]
@@ -243,9 +242,7 @@ def predict_paths(
             start = start_state(p_a, params, options, beta_a(dem))
             run = stress_path_run(sa, sr, params, options, start, max_increments)
         except TivModelError as exc:
-            if failures is None:
-                raise PredictionError(f"path {path}: the model run failed: {exc}") from exc
-            failed(path, f"the model run failed: {exc}")
+            failed(path, f"the model run failed: {exc}", exc)
             continue
         attrs = {
             "kind": "model run",

@@ -231,7 +231,7 @@ def run_dem_demo(out_dir: Path, scene: str, workers: int = 2) -> dict:
         "states": states,
         "scene": scene,
         "n_rods": result.n_rods,
-        "findings": headline_findings(out_dir),
+        "findings": headline_findings(out_dir, everything),
         "k0_path": list(zip(everything["k0_p"], everything["k0_ratio"], strict=True)),
         "radial_paths": sum(label.startswith("R") for label in result.states),
     }

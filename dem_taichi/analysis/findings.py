@@ -162,7 +162,7 @@ def run_findings(folder: str | Path) -> dict:
     return row
 
 
-def headline_findings(folder: str | Path) -> dict:
+def headline_findings(folder: str | Path, found: Mapping[str, Any] | None = None) -> dict:
     """The study's headline findings of one finished run directory, as plain numbers.
 
     :func:`run_findings`' numeric values, plus the linear-response anisotropy at the labelled
@@ -171,10 +171,11 @@ def headline_findings(folder: str | Path) -> dict:
     ``ratio_Bp_minus_B`` (against the same run's B), and ``minutes`` (wall time). Read at the
     labels, so an isotropic path continued past B (``isotropic_end_stress``) leaves them as
     they were. NaN for what the run lacks. What the benchmark summaries over replicas and
-    ``make demo`` report.
+    ``make demo`` report. ``found``: the folder's :func:`run_findings`, when the caller has
+    read them already.
     """
     folder = Path(folder)
-    f = run_findings(folder)
+    f = run_findings(folder) if found is None else found
     row = {k: v for k, v in f.items() if isinstance(v, int | float)}
     states = state_findings(folder)
 
