@@ -2,7 +2,8 @@
 
 Usage::
 
-    python benchmarks/paired_paths_table.py SEED.json [SEED.json ...] [--base base] [--out FILE.md]
+    python benchmarks/paired_paths_table.py SEED.json [SEED.json ...] [--base base] [--null NAME]
+        [--out FILE.md]
 
 Each SEED.json is written by ``benchmarks/paired_paths.py`` (one seed, every variant from the
 same state A; files of the same seed, run at different times from the same A, are merged).
@@ -10,7 +11,9 @@ For each variant against ``--base``: the wall time and steps of the branches (pe
 their ratio to the base), and, per finding, the base's mean and seed-to-seed standard
 deviation (the replica noise), the mean paired difference (variant − base) with its 95 %
 interval (Student t over the seeds) and whether the variant passes the criterion stated
-before the runs: |mean paired difference| ≤ 0.5 × the base's seed-to-seed standard deviation.
+before the runs: |mean paired difference| ≤ 0.5 × the base's seed-to-seed standard deviation
+(``protocol_speed.md``), or, with ``--null NAME``, beside the null pair's differences, flagged
+where the variant's interval excludes 0 and the null pair's does not (``study_servo.md``).
 """
 
 from __future__ import annotations
@@ -44,7 +47,12 @@ FINDINGS = (
     ("e_ratio@R1_end", "E_h/E_v at R1_end"),
     ("e_ratio@R2_end", "E_h/E_v at R2_end"),
     ("e_ratio@R3_end", "E_h/E_v at R3_end"),
+    ("C-B", "C − B (E_h/E_v at C minus at B)"),
+    ("B'-B", "B′ − B (E_h/E_v at B′ minus at B)"),
 )
+
+#: findings derived from two others: key -> (minuend, subtrahend)
+DIFFERENCES = {"C-B": ("e_ratio@C", "e_ratio@B"), "B'-B": ("e_ratio@B'", "e_ratio@B")}
 
 
 def interval(values: list[float]) -> tuple[float, float]:
@@ -59,6 +67,9 @@ def interval(values: list[float]) -> tuple[float, float]:
 
 
 def _value(seed: dict, variant: str, key: str) -> float:
+    if key in DIFFERENCES:
+        first, second = DIFFERENCES[key]
+        return _value(seed, variant, first) - _value(seed, variant, second)
     value = seed["variants"].get(variant, {}).get("findings", {}).get(key)
     return math.nan if value is None else float(value)
 
@@ -68,7 +79,20 @@ def _steps(seed: dict, variant: str) -> int:
     return int(sum(v for k, v in steps.items() if k != "isotropic_to_A"))
 
 
-def table(seeds: list[dict], base: str) -> list[str]:
+def _differences(seeds: list[dict], name: str, base: str, key: str) -> list[float]:
+    return [_value(s, name, key) - _value(s, base, key) for s in seeds]
+
+
+def _excludes_zero(mean: float, half: float) -> bool:
+    return math.isfinite(half) and abs(mean) > half
+
+
+def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
+    """The speed and findings tables of every variant against ``base``; with ``null`` (the name
+    of a variant that should change nothing), each variant's paired differences are shown
+    beside the null pair's, and a finding is flagged when the variant's 95 % interval excludes 0
+    while the null pair's does not (the criterion of ``study_servo.md``); without it, the
+    criterion |mean difference| ≤ 0.5 × the base's seed standard deviation."""
     variants = [v for v in seeds[0]["variants"] if v != base]
     labels = ", ".join(str(s["seed"]) for s in seeds)
     lines = [
@@ -76,42 +100,59 @@ def table(seeds: list[dict], base: str) -> list[str]:
         "",
         "### Speed (branches from A)",
         "",
-        "| variant | settings | wall (s) per seed | steps per seed | wall / base | steps / base |",
+        "| variant | settings | wall (s) per seed | steps per seed | wall / base: mean ± 95 % | "
+        "steps / base: mean ± 95 % |",
         "|---|---|---|---|---|---|",
     ]
     for name in [base, *variants]:
         walls = [s["variants"][name]["branches_wall_seconds"] for s in seeds]
         steps = [_steps(s, name) for s in seeds]
-        wall_ratio = np.mean([w / s["variants"][base]["branches_wall_seconds"]
-                              for w, s in zip(walls, seeds, strict=True)])  # fmt: skip
-        step_ratio = np.mean([n / _steps(s, base) for n, s in zip(steps, seeds, strict=True)])
+        wall_ratio = interval([w / s["variants"][base]["branches_wall_seconds"]
+                               for w, s in zip(walls, seeds, strict=True)])  # fmt: skip
+        step_ratio = interval([n / _steps(s, base) for n, s in zip(steps, seeds, strict=True)])
         settings = "; ".join(seeds[0]["variants"][name]["settings"]) or "(the scene's)"
         lines.append(
             f"| {name} | {settings} | {', '.join(f'{w:.0f}' for w in walls)} | "
-            f"{', '.join(f'{n:,}' for n in steps)} | {wall_ratio:.2f} | {step_ratio:.2f} |"
+            f"{', '.join(f'{n:,}' for n in steps)} | {wall_ratio[0]:.2f} ± {wall_ratio[1]:.2f} | "
+            f"{step_ratio[0]:.2f} ± {step_ratio[1]:.2f} |"
         )
     for name in variants:
-        lines += [
-            "",
-            f"### Findings: {name} − {base}",
-            "",
-            f"| finding | {base}: mean ± seed sd | paired difference: mean ± 95 % | "
-            "|difference| / seed sd | within 0.5 sd |",
-            "|---|---|---|---|---|",
-        ]
+        if name == null:
+            continue
+        lines += ["", f"### Findings: {name} − {base}", ""]
+        if null is None:
+            lines += [
+                f"| finding | {base}: mean ± seed sd | paired difference: mean ± 95 % | "
+                "|difference| / seed sd | within 0.5 sd |",
+                "|---|---|---|---|---|",
+            ]
+        else:
+            lines += [
+                f"| finding | {base}: mean ± seed sd | {name} − {base}: mean ± 95 % | "
+                f"{null} − {base}: mean ± 95 % | half-width / seed sd | bias flagged |",
+                "|---|---|---|---|---|---|",
+            ]
         for key, label in FINDINGS:
             base_values = [_value(s, base, key) for s in seeds]
             if not any(math.isfinite(v) for v in base_values):
                 continue
             finite = [v for v in base_values if math.isfinite(v)]
             sd = float(np.std(finite, ddof=1)) if len(finite) > 1 else math.nan
-            diffs = [_value(s, name, key) - b for s, b in zip(seeds, base_values, strict=True)]
-            mean, half = interval(diffs)
-            ratio = abs(mean) / sd if sd > 0 else math.nan
-            ok = "yes" if ratio <= 0.5 else ("no" if math.isfinite(ratio) else "—")
+            mean, half = interval(_differences(seeds, name, base, key))
+            if null is None:
+                ratio = abs(mean) / sd if sd > 0 else math.nan
+                ok = "yes" if ratio <= 0.5 else ("no" if math.isfinite(ratio) else "—")
+                lines.append(
+                    f"| {label} | {np.mean(finite):.4g} ± {sd:.2g} | {mean:+.3g} ± {half:.2g} | "
+                    f"{ratio:.2f} | {ok} |"
+                )
+                continue
+            null_mean, null_half = interval(_differences(seeds, null, base, key))
+            flagged = _excludes_zero(mean, half) and not _excludes_zero(null_mean, null_half)
             lines.append(
                 f"| {label} | {np.mean(finite):.4g} ± {sd:.2g} | {mean:+.3g} ± {half:.2g} | "
-                f"{ratio:.2f} | {ok} |"
+                f"{null_mean:+.3g} ± {null_half:.2g} | "
+                f"{half / sd if sd > 0 else math.nan:.2f} | {'**yes**' if flagged else 'no'} |"
             )
     return lines
 
@@ -138,10 +179,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("seeds", nargs="+", type=Path)
     parser.add_argument("--base", default="base")
+    parser.add_argument("--null", default=None, help="the variant that should change nothing")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     seeds = merge_by_seed([json.loads(p.read_text()) for p in args.seeds])
-    text = "\n".join(table(seeds, args.base))
+    text = "\n".join(table(seeds, args.base, args.null))
     print(text)
     if args.out:
         args.out.write_text(text + "\n")
