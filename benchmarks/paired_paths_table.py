@@ -74,9 +74,13 @@ def _value(seed: dict, variant: str, key: str) -> float:
     return math.nan if value is None else float(value)
 
 
+#: the stages before A (run once per seed, shared by every variant)
+BEFORE_A = ("aggregation", "isotropic_to_A")
+
+
 def _steps(seed: dict, variant: str) -> int:
     steps = seed["variants"][variant]["steps"]
-    return int(sum(v for k, v in steps.items() if k != "isotropic_to_A"))
+    return int(sum(v for k, v in steps.items() if k not in BEFORE_A))
 
 
 def _differences(seeds: list[dict], name: str, base: str, key: str) -> list[float]:
