@@ -16,6 +16,13 @@ Each parameter gets a status:
 * ``determined`` — the interval closes on both sides inside the search range;
 * ``bounded below`` / ``bounded above`` — it closes on one side only: the data give a bound;
 * ``not determined`` — it closes on neither side (the profile is flat over the range);
+
+a side also stays open where the refits fail (the model cannot be evaluated, or fitted, with θ
+held there: a limit point of a path, a parameter outside the model's domain). Such a point is
+no evidence against θ, only the lack of any: the profile records the nearest failing value
+(``failed_lower``/``failed_upper``) and the statement says so. (Counting a failure as Δ = ∞
+closed both sides at θ̂ itself: a zero-width "determined" interval for a parameter the data
+did not determine, seen on a 300-rod demo calibration whose K0 path reached a limit point.)
 * ``fixed`` — not fitted: kept at :attr:`CalibrationOptions.initial` (the study's Table 1 by
   default, the literature value), or p_r (a unit choice);
 
@@ -68,6 +75,9 @@ class Profile:
     #: refits that stopped at PROFILE_EVALUATIONS (their C_p is an upper bound: the interval
     #: may then be too narrow)
     capped_refits: int = 0
+    #: the nearest value on each side where the refit failed and left that side open (NaN: none)
+    failed_lower: float = math.nan
+    failed_upper: float = math.nan
 
     @property
     def status(self) -> str:
@@ -122,6 +132,18 @@ class Identifiability:
                 "Not determined (flat profile over the search range; the value reported is "
                 "one of many that fit as well): " + ", ".join(groups["not determined"]) + "."
             )
+        failed = [
+            f"{s} ({' and '.join(_failed_sides(p))})"
+            for s, p in self.profiles.items()
+            if _failed_sides(p)
+        ]
+        if failed:
+            lines.append(
+                "The model could not be evaluated or refitted with the parameter held beyond "
+                "these values, so the data say nothing there (the side stays open): "
+                + ", ".join(failed)
+                + "."
+            )
         at_bound = [f"{s} ({p.at_bound})" for s, p in self.profiles.items() if p.at_bound]
         if at_bound:
             lines.append("At a search bound: " + ", ".join(at_bound) + ".")
@@ -157,6 +179,8 @@ class Identifiability:
                     "status": p.status,
                     "at_bound": p.at_bound,
                     "capped_refits": p.capped_refits,
+                    "failed_lower": clean(p.failed_lower),
+                    "failed_upper": clean(p.failed_upper),
                     "grid": [clean(v) for v in p.values],
                     "delta": [clean(d) for d in p.delta],
                 }
@@ -166,6 +190,16 @@ class Identifiability:
             "correlations": [[a, b, r] for a, b, r in self.correlations],
             "statement": self.statement(),
         }
+
+
+def _failed_sides(profile: Profile) -> list[str]:
+    """'below X' / 'above Y' for the sides of ``profile`` left open by failed refits."""
+    sides = []
+    if math.isfinite(profile.failed_lower):
+        sides.append(f"below {profile.failed_lower:.4g}")
+    if math.isfinite(profile.failed_upper):
+        sides.append(f"above {profile.failed_upper:.4g}")
+    return sides
 
 
 def _profile_cost(stage, params: Parameters, symbol: str, value: float, free, options):
@@ -190,7 +224,9 @@ def profile_parameter(
     error is not usable), doubles the step while Δ stays below half the threshold, jumps to the
     quadratic-profile estimate of the crossing once it is above half, and brackets the crossing
     by bisection until Δ there is within 1.5× the threshold; the end of the interval is
-    interpolated linearly in √Δ (exact for a quadratic profile).
+    interpolated linearly in √Δ (exact for a quadratic profile). A side whose crossing stays at a
+    failed refit (Δ = ∞) after the bisections stays open at the last finite point (module
+    docstring).
     """
     free = fit.parameters
     dof = fit.n_data - len(free)
@@ -206,7 +242,7 @@ def profile_parameter(
     # without a usable standard error: a twentieth of |θ̂| or of a tenth of the search range
     first = 1.96 * se if usable else 0.05 * max(abs(value), min(0.1 * span, 1.0), 1e-3)
     grid, delta = [value], [0.0]
-    ends, closed = {}, {}
+    ends, closed, failed = {}, {}, {-1.0: math.nan, 1.0: math.nan}
     capped = 0
 
     def at(current, target):
@@ -214,6 +250,7 @@ def profile_parameter(
         cost, refit, cap = _profile_cost(stage, current, symbol, target, free, options)
         capped += cap
         d = 2.0 * (cost - fit.cost) / s2
+        d = d if math.isfinite(d) else math.inf  # a NaN cost is a failed refit too
         grid.append(target)
         delta.append(d)
         return d, refit
@@ -253,11 +290,11 @@ def profile_parameter(
                 out_value, out_d = mid, d_m
             else:
                 inside_value, inside, current = mid, d_m, refit_m
-        if math.isfinite(out_d):
-            a, b = math.sqrt(max(inside, 0.0)), math.sqrt(out_d)
-            frac = (math.sqrt(threshold) - a) / (b - a) if b > a else 1.0
-        else:
-            frac = 0.0
+        if not math.isfinite(out_d):  # the model failed, not the data: the side stays open
+            ends[side], failed[side] = inside_value, out_value
+            continue
+        a, b = math.sqrt(max(inside, 0.0)), math.sqrt(out_d)
+        frac = (math.sqrt(threshold) - a) / (b - a) if b > a else 1.0
         ends[side] = inside_value + min(max(frac, 0.0), 1.0) * (out_value - inside_value)
         closed[side] = True
     order = np.argsort(grid)
@@ -274,6 +311,8 @@ def profile_parameter(
         at_bound=fit.at_bound.get(symbol, ""),
         level=level,
         capped_refits=capped,
+        failed_lower=failed[-1.0],
+        failed_upper=failed[1.0],
     )
 
 

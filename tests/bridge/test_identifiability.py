@@ -191,3 +191,58 @@ def test_pipeline_with_radial_paths(radial_synthetic, tmp_path):
     assert saved["parameters"]["z"] == pytest.approx(TRUTH.z, rel=1e-4)
     report = (tmp_path / "out" / "report.md").read_text()
     assert "radial_2" in report and "## What the data determine" not in report
+
+
+class _Held:
+    """Stand-in parameters: only the held value matters to the fake refit."""
+
+    def __init__(self, value: float) -> None:
+        self.value = value
+
+    def replace(self, **held):
+        return _Held(*held.values())
+
+
+def _fake_fit(value: float):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        name="fabric", parameters=("s",), n_data=40, cost=1.0, values={"s": value},
+        bounds={"s": (0.0, 1000.0)}, standard_errors={"s": 2.0}, at_bound={},
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("fails_above", [False, True])
+def test_a_failed_refit_leaves_its_side_open(monkeypatch, fails_above):
+    """A profile point where the model cannot be refitted (a limit point) is no evidence: the
+    side stays open, the failing value is recorded and stated; the other side still closes
+    where the data close it. (It used to count as Δ = ∞ and close both sides at θ̂: a
+    zero-width "determined" interval.)"""
+    from types import SimpleNamespace
+
+    from bridge.calibration import identifiability as ide_module
+    from tiv_model.errors import TivModelError
+
+    value, curvature = 197.0, 1.0  # C(θ) = 1 + ½ curvature (θ − 197)²
+
+    def fake_fit_stage(stage, held, others, options):
+        theta = held.value
+        if fails_above and theta > value:
+            raise TivModelError("the model's K0 run reached a limit point")
+        cost = 1.0 + 0.5 * curvature * (theta - value) ** 2
+        return held, SimpleNamespace(cost=cost, success=True)
+
+    monkeypatch.setattr(ide_module, "fit_stage", fake_fit_stage)
+    prof = ide_module.profile_parameter(None, _Held(value), "s", _fake_fit(value), None)
+    assert prof.closed_lower and prof.lower < value
+    if fails_above:
+        assert not prof.closed_upper and prof.status == "bounded below"
+        assert value < prof.failed_upper <= value + 1.96 * 2.0
+        assert prof.upper == value  # the last point profiled: the optimum itself
+        holder = ide_module.Identifiability({"s": prof}, {}, [], 0.95, 0.0)
+        assert "could not be evaluated or refitted" in holder.statement()
+        assert f"s (above {prof.failed_upper:.4g})" in holder.statement()
+        assert holder.to_dict()["profiles"]["s"]["failed_upper"] == prof.failed_upper
+    else:
+        assert prof.closed_upper and prof.status == "determined"
+        assert prof.upper > value and prof.failed_upper != prof.failed_upper  # NaN: none
