@@ -129,8 +129,11 @@ class Identifiability:
                 )
         if groups["not determined"]:
             lines.append(
-                "Not determined (flat profile over the search range; the value reported is "
-                "one of many that fit as well): " + ", ".join(groups["not determined"]) + "."
+                f"Not determined (the {pct} profile interval closes on neither side: the "
+                "profile is flat over the search range, or the model fails beyond the values "
+                "given below; the value reported may be one of many that fit as well): "
+                + ", ".join(groups["not determined"])
+                + "."
             )
         failed = [
             f"{s} ({' and '.join(_failed_sides(p))})"
