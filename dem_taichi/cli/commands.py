@@ -10,8 +10,8 @@ states (:mod:`dem_taichi.response.anisotropy`).
 elastic probes, figures and a report; it takes the options of ``python -m dem_taichi.protocol``
 (see :func:`dem_taichi.protocol.runner.main`).
 
-``run`` loads a scene (a TOML path or a built-in name: smoke, demo, default, paper), builds the
-gas and runs the engine's built-in loading (``protocol`` runs the study's paths):
+``run`` loads a scene (a TOML path or a built-in name: smoke, demo, default, paper, study...),
+builds the gas and runs the engine's built-in loading (``protocol`` runs the study's paths):
 strain-controlled isotropic compression at ``[control] compression_strain_rate`` down to
 ``target_specific_volume``, then ``relax_steps`` steps with the cell fixed. It writes, under
 ``--out``:
@@ -78,6 +78,7 @@ from dem_taichi.protocol.cost import check_cost, cost_lines
 from dem_taichi.protocol.run_schedule import builtin_schedule
 from dem_taichi.scene.config import (
     Scene,
+    builtin_scene_names,
     scene_from_toml,
     scene_to_toml,
 )
@@ -334,7 +335,9 @@ def _parser() -> ArgumentParser:
         help="run a scene (gas -> isotropic compression -> relax)",
         description="Run a scene's built-in loading: gas -> isotropic compression -> relax.",
     )
-    run.add_argument("scene", help="scene TOML path or built-in name (smoke, demo, default, paper)")
+    run.add_argument(
+        "scene", help=f"scene TOML path or built-in name ({', '.join(builtin_scene_names())})"
+    )
     run.add_argument("--out", required=True, help="output directory (one run per directory)")
     run.add_argument("--arch", choices=("cpu", "gpu"), default="cpu", help="device (cpu)")
     run.add_argument(

@@ -83,7 +83,7 @@ from dem_taichi.protocol.resume import (
     saved_summary,
 )
 from dem_taichi.protocol.servo import SecantStiffness
-from dem_taichi.scene.config import Scene, load_scene, scene_to_toml
+from dem_taichi.scene.config import Scene, builtin_scene_names, load_scene, scene_to_toml
 from dem_taichi.scene.options import add_preset_option, scene_from_options
 from dem_taichi.scene.probing_sections import probing_settings
 from dem_taichi.scene.protocol_sections import protocol_settings
@@ -391,7 +391,7 @@ def _parser(prog: str) -> argparse.ArgumentParser:
         "with elastic probes; write history, probes, configurations, figures and a report.",
     )
     parser.add_argument(
-        "scene", help="scene TOML file or built-in name (smoke, demo, default, paper)"
+        "scene", help=f"scene TOML file or built-in name ({', '.join(builtin_scene_names())})"
     )
     parser.add_argument("--out", required=True, help="output directory (one run per directory)")
     parser.add_argument("--arch", default="cpu", choices=("cpu", "gpu"), help="device (cpu)")

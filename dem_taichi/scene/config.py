@@ -433,17 +433,23 @@ def scene_from_toml(text: str) -> Scene:
     return scene_from_dict(data, source_text=text)
 
 
+def builtin_scene_names() -> list[str]:
+    """The names of the scenes shipped with the package (``dem_taichi/scenes/*.toml``), sorted."""
+    return sorted(p.stem for p in (Path(__file__).parents[1] / "scenes").glob("*.toml"))
+
+
 def builtin_scene_path(name: str) -> Path:
-    """Path of a scene shipped with the package (``smoke``, ``demo``, ``default``, ``paper``)."""
+    """Path of a scene shipped with the package (:func:`builtin_scene_names`)."""
     path = Path(__file__).parents[1] / "scenes" / f"{name}.toml"
     if not path.exists():
-        have = sorted(p.stem for p in (Path(__file__).parents[1] / "scenes").glob("*.toml"))
-        raise SceneError(f"no built-in scene {name!r}; available: {', '.join(have)}")
+        raise SceneError(
+            f"no built-in scene {name!r}; available: {', '.join(builtin_scene_names())}"
+        )
     return path
 
 
 def load_scene(path_or_name: str | Path) -> Scene:
-    """Load a scene from a TOML path or a built-in scene name (smoke, demo, default, paper).
+    """Load a scene from a TOML path or a built-in scene name (:func:`builtin_scene_names`).
 
     A scene *file* must state its sample: an empty file, or one without ``[particles]``, is
     refused (it would otherwise run the defaults without a word); ``scene_from_dict`` and
@@ -451,8 +457,8 @@ def load_scene(path_or_name: str | Path) -> Scene:
     """
     if not isinstance(path_or_name, str | Path) or not str(path_or_name).strip():
         raise SceneError(
-            f"scene = {path_or_name!r}: give a built-in scene name (smoke, demo, default, "
-            "paper), a scene TOML path or a loaded Scene"
+            f"scene = {path_or_name!r}: give a built-in scene name "
+            f"({', '.join(builtin_scene_names())}), a scene TOML path or a loaded Scene"
         )
     path = Path(path_or_name)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
@@ -460,7 +466,7 @@ def load_scene(path_or_name: str | Path) -> Scene:
     if not path.exists():
         raise SceneError(
             f"scene file {str(path)!r} does not exist; give a TOML file or a built-in scene "
-            "(smoke, demo, default, paper)"
+            f"({', '.join(builtin_scene_names())})"
         )
     if not path.is_file():
         raise SceneError(f"scene {str(path)!r} is a directory; give a scene TOML file")

@@ -24,7 +24,7 @@ from dem_taichi.sweep.spec import sweep_from_toml
 
 BUILTIN = (
     "smoke", "demo", "default", "paper", "smoke_bonded", "paper_bonded", "study", "study_demo",
-)
+)  # fmt: skip
 NUMERICAL_KEYS = {
     "integration.dt_safety",
     "control.inertial_number_max",
@@ -125,3 +125,11 @@ def test_command_line_refuses_an_unknown_preset(tmp_path):
     )
     assert proc.returncode == 2
     assert "invalid choice: 'fastest'" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_builtin_scene_names_are_the_shipped_scenes():
+    """The scene names the command lines list in their help and errors are the scenes shipped
+    (a new scene is listed without editing a help string)."""
+    from dem_taichi.scene.config import builtin_scene_names
+
+    assert builtin_scene_names() == sorted(BUILTIN)
