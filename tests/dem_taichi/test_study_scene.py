@@ -26,6 +26,10 @@ DECLARED = {
     # fewer steps to A; not cost only on this gel: it changed A on one seed of three at 300 rods
     # (benchmarks/results/study_demo.md), so it is part of the scene's definition of A
     ("protocol", "confirm_increment"): 1.0e-3,
+    # the secant servo at the full rate cap: half the steps from A, no headline finding moved
+    # beyond the null pair's spread over 5 seeds (benchmarks/results/study_servo.md)
+    ("protocol", "servo_stiffness"): "secant",
+    ("protocol", "inertial_number_safety"): 1.0,
     # cost only: the probes' moduli within 3.5e-5
     ("probing", "linear_relax_unbalanced_force"): 1.0e-5,
     ("scene", "name"): "study",
