@@ -391,7 +391,7 @@ class StressServo:
                     )
             factor = rate_factor(factor, ufr, c.unbalanced_force_max)
             rate_cap = factor * strain_rate_cap(
-                sim, measures["mean_stress"], c.pressure_tolerance, c.inertial_number_safety
+                sim, measures["mean_stress"], c.pressure_tolerance, c.servo_safety()
             )
             rates = np.zeros(2)
             corrected = modal.scaled(residual, tolerance)

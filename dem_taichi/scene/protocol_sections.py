@@ -145,7 +145,12 @@ class ProtocolConfig(SceneSection):
       halved, down to 0.1 × (and recovers by ×1.25 per check below it). Spikes from sudden
       rearrangements can exceed it whatever the rate; they are counted in the results.
     - ``inertial_number_safety`` [0.5]: the rates are capped at this fraction of the
-      inertial-number limit of [control] (the stress can drop within a servo update).
+      inertial-number limit of [control] (the stress can drop within a servo update), in the
+      compression to A (once p > 0) and, unless the next key is set, in the stress servo.
+    - ``servo_inertial_number_safety`` [unset = ``inertial_number_safety``]: the same fraction
+      for the stress servo alone (the paths from A), so that the servo's loading rate can change
+      while the preparation of A stays bit for bit the same. The `study` scenes set 1.0 with the
+      secant servo (``benchmarks/results/study_servo.md``).
     - ``save_states`` [true]: write a checkpoint ``state_<label>.npz`` at every labelled state.
     - ``save_path_states`` [false]: also write ``path_<stage>_<increment>.npz`` at every relaxed
       increment of the paths from A (the intermediate states of A→B, A→C, C→B, radial), for
@@ -374,6 +379,9 @@ class ProtocolConfig(SceneSection):
     inertial_number_safety: float = field(
         default=0.5, metadata=SERVO_KEYS["inertial_number_safety"]
     )
+    servo_inertial_number_safety: float | None = field(
+        default=None, metadata=SERVO_KEYS["servo_inertial_number_safety"]
+    )
     save_states: bool = field(
         default=True,
         metadata=_doc("write a checkpoint state_<label>.npz at every labelled state", "-"),
@@ -495,6 +503,13 @@ class ProtocolConfig(SceneSection):
         if self.path_stress_tolerance is None:
             return self.stress_tolerance
         return self.path_stress_tolerance
+
+    def servo_safety(self) -> float:
+        """The stress servo's fraction of [control] inertial_number_max:
+        ``servo_inertial_number_safety`` when set, else ``inertial_number_safety``."""
+        if self.servo_inertial_number_safety is None:
+            return self.inertial_number_safety
+        return self.servo_inertial_number_safety
 
     def transition_pressure_tolerance(self, scene) -> float:
         """The p above which a relaxed state carries load in the A criterion (DEM units):

@@ -6,7 +6,8 @@ class's docstring); this module holds their metadata so that the ``[protocol]`` 
 the project's module length, as :mod:`dem_taichi.scene.aggregation_keys` does for the aggregation
 keys. They are the tolerances of the relaxed states' stresses (``stress_tolerance``,
 ``path_stress_tolerance``), the servo's rate law and its hunting detection (``servo_*``), and the
-caps of its loading rate (``unbalanced_force_max``, ``inertial_number_safety``); the servo is
+caps of its loading rate (``unbalanced_force_max``, ``inertial_number_safety``,
+``servo_inertial_number_safety``); the servo is
 :mod:`dem_taichi.protocol.servo`.
 
 Units: DEM units (d = 1, disc mass = 1); stresses in force/length. Every key's unit and a one-line
@@ -104,4 +105,18 @@ SERVO_KEYS: dict[str, dict[str, Any]] = {
         doc="the rates are capped at this fraction of [control] inertial_number_max",
         unit="1",
     ),
+    "servo_inertial_number_safety": {
+        **_range(
+            0.0,
+            1.0,
+            lo_open=True,
+            doc=(
+                "the stress servo's rates are capped at this fraction of [control] "
+                "inertial_number_max (unset: inertial_number_safety, which the compression to "
+                "A keeps)"
+            ),
+            unit="1",
+        ),
+        "optional": True,
+    },
 }

@@ -267,3 +267,55 @@ def test_a_path_from_A_starts_the_servo_afresh():
     runner.log.states["A"] = SimpleNamespace(measures=plant.measure())
     runner._restore_A()
     assert runner.stress_servo.memory.times == {}
+
+
+class RateRecordingPlant(PlasticPlant):
+    """The plastic plant, keeping the largest |rate| / sqrt(p) the servo asked for (the cap of
+    the model is safety × I_max × sqrt(p/ρ)/d with I_max = ρ = d = 1)."""
+
+    def __init__(self, stress0: float) -> None:
+        super().__init__(stress0)
+        self.largest = 0.0
+
+    def run(self, n, control, output_every=None, writer=None):
+        p = max(self.measure()["mean_stress"], ProtocolConfig().pressure_tolerance)
+        rates = np.abs([control.x.value, control.y.value])
+        self.largest = max(self.largest, float(rates.max()) / math.sqrt(p))
+        return super().run(n, control, output_every, writer)
+
+
+@pytest.mark.parametrize("servo_safety", [None, 0.005])
+def test_the_servo_rate_cap_has_its_own_key_and_the_compression_to_A_keeps_the_other(
+    monkeypatch, servo_safety
+):
+    """``servo_inertial_number_safety`` caps the servo's rates alone (unset: the shared
+    ``inertial_number_safety``); the compression to A keeps ``inertial_number_safety``, so a
+    scene can load its paths faster with A bit for bit the same (study_servo.md)."""
+    from dem_taichi.protocol import transition
+
+    shared = 0.02  # the plant's servo asks for ~0.08 sqrt(p) uncapped: both caps bind
+    runner, plant, measures, _ = servo_on_delayed_plant(
+        2_000_000, RateRecordingPlant, servo_stiffness="secant",
+        inertial_number_safety=shared, servo_inertial_number_safety=servo_safety,
+    )  # fmt: skip
+    used = shared if servo_safety is None else servo_safety
+    assert runner.config.servo_safety() == used
+    assert abs(measures["stress_yy"] / 15.0 - 1) <= runner.config.stress_tolerance
+    # the cap binds at the key's value (halved at most once by the UFR rule on this plant)
+    assert 0.45 * used <= plant.largest <= used * (1 + 1e-9)
+
+    seen = []
+
+    def cap(sim, p, floor, safety=1.0):
+        seen.append(safety)
+        return 1.0
+
+    monkeypatch.setattr(transition, "strain_rate_cap", cap)
+    monkeypatch.setattr(transition, "apply_strain", lambda *a, **k: {"mean_stress": 1.0})
+    record = SimpleNamespace(steps=0, note=lambda *a, **k: None)
+    compression_runner = SimpleNamespace(
+        config=runner.config, sim=SimpleNamespace(step=0, scene=plant.scene),
+        history=None, _record=lambda stage: record,
+    )  # fmt: skip
+    transition.load_compression(compression_runner, "isotropic_to_A", 1e-3, 1.0, 0.5)
+    assert seen == [shared]

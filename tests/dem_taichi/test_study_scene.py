@@ -29,7 +29,7 @@ DECLARED = {
     # the secant servo at the full rate cap: half the steps from A, no headline finding moved
     # beyond the null pair's spread over 5 seeds (benchmarks/results/study_servo.md)
     ("protocol", "servo_stiffness"): "secant",
-    ("protocol", "inertial_number_safety"): 1.0,
+    ("protocol", "servo_inertial_number_safety"): 1.0,
     # cost only: the probes' moduli within 3.5e-5
     ("probing", "linear_relax_unbalanced_force"): 1.0e-5,
     ("scene", "name"): "study",
