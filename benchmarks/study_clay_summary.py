@@ -34,6 +34,7 @@ EXPERIMENTS = (
     ("study_demo_replicas.csv", "study_demo_replicas.sh", "study_demo.md"),
     ("study_clay_bonded_cells.csv", "study_clay_bonded.sh", "study_clay_bonded.md"),
     ("study_demo_secant_replicas.csv", "study_demo_replicas.sh", "study_servo.md"),
+    ("study_scene_secant_replicas.csv", "study_scene_replicas.sh", "study_servo.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell

@@ -43,15 +43,11 @@ RESULTS = ROOT / "benchmarks" / "results"
 #: The replicas beside which the report sets this run (column title → the saved tables and the
 #: columns taken from each, all when None): the demo's scene over three seeds, as the scene is
 #: since 2026-12-03 (the secant servo: `study_demo_secant_replicas.md`, `study_servo.md`), and
-#: the `study` scene at the study's size over three seeds, every finding
-#: from the whole protocol (`study_scene.md`), the stress scale from the same seeds' isotropic
-#: paths continued to 200 kPa (`study_scene_window.md`: measured on all three)
+#: the `study` scene at the study's size over three seeds, the whole protocol with its isotropic
+#: path to 200 kPa, the stress scale measured on all three (`study_scene_secant_replicas.md`)
 REFERENCES: dict[str, tuple[tuple[Path, tuple[str, ...] | None], ...]] = {
     "`study_demo`, 300 rods": ((RESULTS / "study_demo_secant_replicas.csv", None),),
-    "`study`, 1520 rods": (
-        (RESULTS / "study_scene_replicas.csv", None),
-        (RESULTS / "study_scene_window.csv", ("stress_scale_kpa_measured",)),
-    ),
+    "`study`, 1520 rods": ((RESULTS / "study_scene_secant_replicas.csv", None),),
 }
 ISOTROPIC_P_MAX = 280.0  # kPa, safely below the v = 1 limit of Table 1 (p_c ≈ 286 kPa)
 K0_SIGMA_V_MAX = 250.0  # kPa
