@@ -158,7 +158,18 @@ def calibrate_from_results(
         probes = all_probe_series(probes_data, convention, options.probe_method)
     elif "elastic" in stages:
         stages = tuple(s for s in stages if s != "elastic")
-    result = calibrate(series, probes, options.calibration, stages)
+    stage_failures: dict[str, str] = {}
+    try:
+        result = calibrate(series, probes, options.calibration, stages)
+    except CalibrationError as error:
+        # the fabric stage (model runs along K0 and the radial paths) can fail where the model
+        # reaches a limit point at every parameter set the fit tries; the cheap stages need it
+        # not, so they are kept, and the fabric parameters keep their starting values
+        if "fabric" not in stages or not str(error).startswith("stage fabric:"):
+            raise
+        stage_failures["fabric"] = str(error)
+        stages = tuple(s for s in stages if s != "fabric")
+        result = calibrate(series, probes, options.calibration, stages)
     seconds_calibration = time.perf_counter() - t0
     ide = identifiability(result, series, probes) if options.identifiability else None
     model_options = options.calibration.model_options
@@ -199,6 +210,11 @@ def calibrate_from_results(
         "stages": ", ".join(stages),
         "model fabric at A": options.calibration.initial_fabric,
     }
+    if stage_failures:
+        description["stages not fitted"] = "; ".join(
+            f"{s}: {r} (its parameters keep their starting values)"
+            for s, r in stage_failures.items()
+        )
     if failures:
         description["predictions not run"] = "; ".join(f"{p}: {r}" for p, r in failures.items())
     text = report_markdown(result, runs, model_probes, probes, description, figures, out, ide)

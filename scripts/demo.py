@@ -378,6 +378,9 @@ def write_index(out_dir: Path, parts: dict[str, dict | str]) -> Path:
             if error is not None and not abs(error) < abs(value):
                 shown += " (not determined by these data)"
             lines.append(f"| {name} | {value:.4g} | {shown} |")
+        not_fitted = (bridge.get("data") or {}).get("stages not fitted")
+        if not_fitted:
+            lines += ["", f"Calibration stages that could not be fitted: {not_fitted}"]
         failed = (bridge.get("data") or {}).get("predictions not run")
         if failed:
             lines += ["", f"Predictions the calibrated model could not run: {failed}"]

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bridge.calibration import CalibrationOptions
+from bridge.calibration import CalibrationError, CalibrationOptions
 from bridge.pipeline import PipelineOptions, calibrate_from_results, main
 from bridge.pipeline_result import PipelineResult
 from bridge.predict import PredictionError, predict_paths, predict_probes
@@ -225,3 +225,31 @@ def test_the_pipeline_keeps_the_calibration_when_a_prediction_fails(
     assert (tmp_path / "out" / "calibration.json").exists()
     assert (tmp_path / "out" / "prediction_isotropic.nc").exists()
     assert not (tmp_path / "out" / "prediction_k0.nc").exists()
+
+
+def test_the_pipeline_keeps_the_cheap_stages_when_the_fabric_stage_fails(
+    synthetic, tmp_path, monkeypatch
+):
+    """Found by `make demo` on `study_demo` with the secant servo: the fabric stage's model
+    fails at every parameter set the fit tries (a limit point along K0), which lost the whole
+    calibration. The compressibility and elastic stages are kept; the fabric parameters keep
+    their starting values; the report and the outcome say which stage was not fitted and why."""
+    import bridge.pipeline
+
+    history, probes = _write_inputs(synthetic, tmp_path / "dem")
+    options = PipelineOptions(fabric_scale=CONVENTION.fabric_scale, calibration=FAST)
+    real = bridge.pipeline.calibrate
+
+    def fabric_fails(series, probes, calibration_options, stages):
+        if "fabric" in stages:
+            raise CalibrationError("stage fabric: the model fails at the best parameters found")
+        return real(series, probes, calibration_options, stages)
+
+    monkeypatch.setattr(bridge.pipeline, "calibrate", fabric_fails)
+    outcome = calibrate_from_results(history, probes, tmp_path / "out", options)
+    assert outcome["parameters"]["k"] == pytest.approx(TRUTH.k, rel=1e-8)
+    assert "fabric: stage fabric: the model fails" in outcome["data"]["stages not fitted"]
+    assert "fabric" not in outcome["data"]["stages"]
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "stages not fitted" in report
+    assert (tmp_path / "out" / "calibration.json").exists()
