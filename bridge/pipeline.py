@@ -49,7 +49,13 @@ from clay_cli import (
 )
 from tiv_model.params import BOUND_LAWS, SYMBOLS, TABLE1, ModelOptions
 
-from .calibration import STAGES, CalibrationError, CalibrationOptions, calibrate
+from .calibration import (
+    STAGES,
+    CalibrationError,
+    CalibrationOptions,
+    ModelFailureError,
+    calibrate,
+)
 from .calibration.identifiability import identifiability
 from .command_options import add_k0_mode_option, add_model_options
 from .figures import PANELS, write_figures
@@ -161,11 +167,12 @@ def calibrate_from_results(
     stage_failures: dict[str, str] = {}
     try:
         result = calibrate(series, probes, options.calibration, stages)
-    except CalibrationError as error:
+    except ModelFailureError as error:
         # the fabric stage (model runs along K0 and the radial paths) can fail where the model
         # reaches a limit point at every parameter set the fit tries; the cheap stages need it
-        # not, so they are kept, and the fabric parameters keep their starting values
-        if "fabric" not in stages or not str(error).startswith("stage fabric:"):
+        # not, so they are kept, and the fabric parameters keep their starting values (a set-up
+        # error of the stage, e.g. an empty search range, is a CalibrationError and still raises)
+        if error.stage != "fabric":
             raise
         stage_failures["fabric"] = str(error)
         stages = tuple(s for s in stages if s != "fabric")

@@ -29,6 +29,7 @@ from .options import (
     UNITS,
     CalibrationError,
     CalibrationOptions,
+    ModelFailureError,
 )
 from .result import CalibrationResult, StageFit, covariance_from_jacobian
 
@@ -45,6 +46,7 @@ __all__ = [
     "CalibrationOptions",
     "CalibrationResult",
     "JointStage",
+    "ModelFailureError",
     "StageFit",
     "build_stages",
     "calibrate",

@@ -66,6 +66,7 @@ from .options import (
     UNITS,
     CalibrationError,
     CalibrationOptions,
+    ModelFailureError,
 )
 from .result import CalibrationResult, StageFit, covariance_from_jacobian
 
@@ -304,9 +305,10 @@ def _fit_stage(
     try:
         base = stage.pieces(params)
     except TivModelError as exc:
-        raise CalibrationError(
+        raise ModelFailureError(
+            stage.name,
             f"stage {stage.name}: the model fails at the starting parameters "
-            f"{params.as_symbols()}: {exc}"
+            f"{params.as_symbols()}: {exc}",
         ) from exc
     sizes = {k: v.size for k, v in base.items()}
     n_data = sum(sizes.values())
@@ -381,9 +383,11 @@ def _fit_stage(
         sol = solve(x0, options.method, budget)
     final = residuals(sol.x)
     if np.all(final == options.penalty):
-        raise CalibrationError(
+        raise ModelFailureError(
+            stage.name,
             f"stage {stage.name}: the model fails at the best parameters found "
-            f"({dict(zip(free, sol.x.tolist(), strict=True))}): {failures[-1] if failures else '?'}"
+            f"({dict(zip(free, sol.x.tolist(), strict=True))}): "
+            f"{failures[-1] if failures else '?'}",
         )
     jac = np.asarray(sol.jac, dtype=float)
     dof = n_data - len(free)

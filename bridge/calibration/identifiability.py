@@ -16,13 +16,6 @@ Each parameter gets a status:
 * ``determined`` — the interval closes on both sides inside the search range;
 * ``bounded below`` / ``bounded above`` — it closes on one side only: the data give a bound;
 * ``not determined`` — it closes on neither side (the profile is flat over the range);
-
-a side also stays open where the refits fail (the model cannot be evaluated, or fitted, with θ
-held there: a limit point of a path, a parameter outside the model's domain). Such a point is
-no evidence against θ, only the lack of any: the profile records the nearest failing value
-(``failed_lower``/``failed_upper``) and the statement says so. (Counting a failure as Δ = ∞
-closed both sides at θ̂ itself: a zero-width "determined" interval for a parameter the data
-did not determine, seen on a 300-rod demo calibration whose K0 path reached a limit point.)
 * ``fixed`` — not fitted: kept at :attr:`CalibrationOptions.initial` (the study's Table 1 by
   default, the literature value), or p_r (a unit choice);
 
@@ -30,6 +23,13 @@ and a flag when the optimum sits on a search bound (the bound, not the data, set
 there: the standard error is then no interval). Correlations |ρ| ≥ 0.95 within a stage's
 covariance are listed. :func:`replica_spread` summarises calibrations on replica runs (the
 spread the DEM's own scatter gives the parameters).
+
+A side also stays open where the refits fail (the model cannot be evaluated, or fitted, with θ
+held there: a limit point of a path, a parameter outside the model's domain). Such a point is
+no evidence against θ, only the lack of any: the profile records the nearest failing value
+(``failed_lower``/``failed_upper``) and the statement says so. (Counting a failure as Δ = ∞
+closed both sides at θ̂ itself: a zero-width "determined" interval for a parameter the data
+did not determine, seen on a 300-rod demo calibration whose K0 path reached a limit point.)
 """
 
 from __future__ import annotations

@@ -61,6 +61,19 @@ class CalibrationError(RuntimeError):
     """A calibration stage could not be set up or did not succeed; the message says why."""
 
 
+class ModelFailureError(CalibrationError):
+    """The model cannot be run on a stage's paths, at its starting parameters or at every
+    parameter set the fit tried (a limit point along a path, a parameter outside the model's
+    domain): the data, not the set-up, stop that stage. ``stage``: the stage's name."""
+
+    def __init__(self, stage: str, message: str) -> None:
+        super().__init__(message)
+        self.stage = stage
+
+    def __reduce__(self):  # picklable across processes (the args are not the __init__'s)
+        return type(self), (self.stage, str(self))
+
+
 @dataclass(frozen=True)
 class CalibrationOptions:
     """How to calibrate (defaults follow the study).
@@ -194,4 +207,5 @@ __all__ = [
     "UNITS",
     "CalibrationError",
     "CalibrationOptions",
+    "ModelFailureError",
 ]

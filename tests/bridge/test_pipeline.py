@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bridge.calibration import CalibrationError, CalibrationOptions
+from bridge.calibration import CalibrationError, CalibrationOptions, ModelFailureError
 from bridge.pipeline import PipelineOptions, calibrate_from_results, main
 from bridge.pipeline_result import PipelineResult
 from bridge.predict import PredictionError, predict_paths, predict_probes
@@ -242,7 +242,9 @@ def test_the_pipeline_keeps_the_cheap_stages_when_the_fabric_stage_fails(
 
     def fabric_fails(series, probes, calibration_options, stages):
         if "fabric" in stages:
-            raise CalibrationError("stage fabric: the model fails at the best parameters found")
+            raise ModelFailureError(
+                "fabric", "stage fabric: the model fails at the best parameters found"
+            )
         return real(series, probes, calibration_options, stages)
 
     monkeypatch.setattr(bridge.pipeline, "calibrate", fabric_fails)
@@ -253,3 +255,10 @@ def test_the_pipeline_keeps_the_cheap_stages_when_the_fabric_stage_fails(
     report = (tmp_path / "out" / "report.md").read_text()
     assert "stages not fitted" in report
     assert (tmp_path / "out" / "calibration.json").exists()
+
+    def fabric_misconfigured(series, probes, calibration_options, stages):
+        raise CalibrationError("stage fabric: empty search range for ['s']")
+
+    monkeypatch.setattr(bridge.pipeline, "calibrate", fabric_misconfigured)
+    with pytest.raises(CalibrationError, match="empty search range"):  # a set-up error raises
+        calibrate_from_results(history, probes, tmp_path / "out2", options)
