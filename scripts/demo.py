@@ -312,13 +312,17 @@ def findings_lines(dem: dict, tiv: dict | None, references: dict | None = None) 
     if model is not None:
         table1["table1_k0"] = f"{model['K0 at 100 kPa']:.3f} (Table 1 model, σ_v = 100 kPa)"
     k0 = ", ".join(f"{p:.3g}: {r:.3f}" for p, r in dem.get("k0_path", []))
+    # the pages of the replica tables the columns read (REFERENCES: one table per column)
+    demo_page, study_page = (
+        files[0][0].with_suffix(".md").relative_to(ROOT).as_posix() for files in REFERENCES.values()
+    )
     lines = [
         "## The study's findings on this run",
         "",
         f"Scene `{dem['scene']}` ({dem['n_rods']} rods; DEM stresses read as kPa, 1 DEM unit = "
         "1 kPa). Beside it, mean ± 95 % over replicas: the demo's scene on three seeds "
-        "(`benchmarks/results/study_demo.md`; one 300-rod sample scatters by about that much) "
-        "and the same material at the study's size (`benchmarks/results/study_scene.md`). "
+        f"(`{demo_page}`; one 300-rod sample scatters by about that much) and the same "
+        f"material at the study's size (`{study_page}`). "
         "Moduli are the linear-response constrained moduli; E_v/p = 125 and the anisotropy "
         "along K0 are the study's DEM, the rest its Table 1.",
         "",
