@@ -21,10 +21,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 from scipy import stats
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
+from paired_paths import BEFORE_A  # noqa: E402
 
 #: the findings compared, with their labels
 FINDINGS = (
@@ -72,10 +76,6 @@ def _value(seed: dict, variant: str, key: str) -> float:
         return _value(seed, variant, first) - _value(seed, variant, second)
     value = seed["variants"].get(variant, {}).get("findings", {}).get(key)
     return math.nan if value is None else float(value)
-
-
-#: the stages before A (run once per seed, shared by every variant)
-BEFORE_A = ("aggregation", "isotropic_to_A")
 
 
 def _steps(seed: dict, variant: str) -> int:
