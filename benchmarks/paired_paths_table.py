@@ -25,7 +25,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
+
+from dem_taichi.analysis.findings import mean_interval
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
 from paired_paths import BEFORE_A  # noqa: E402
@@ -60,14 +61,10 @@ DIFFERENCES = {"C-B": ("e_ratio@C", "e_ratio@B"), "B'-B": ("e_ratio@B'", "e_rati
 
 
 def interval(values: list[float]) -> tuple[float, float]:
-    """Mean and the half-width of its 95 % interval (NaN below two values)."""
-    x = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
-    if x.size == 0:
-        return math.nan, math.nan
-    if x.size == 1:
-        return float(x[0]), math.nan
-    t = stats.t.ppf(0.975, x.size - 1)
-    return float(x.mean()), float(t * x.std(ddof=1) / math.sqrt(x.size))
+    """Mean and the half-width of its 95 % interval (Student t; NaN below two values), of the
+    finite values (None skipped): :func:`dem_taichi.analysis.findings.mean_interval`."""
+    mean, half, _ = mean_interval([math.nan if v is None else v for v in values])
+    return mean, half
 
 
 def _value(seed: dict, variant: str, key: str) -> float:
