@@ -31,10 +31,6 @@
 #   usage: bash benchmarks/study_clay_agitated.sh OUT [PYTHON] [ONLY]
 #   ONLY: a bash regular expression; only the runs whose name matches it (e.g. '^RRl')
 set -u
-OUT=${1:?usage: study_clay_agitated.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 common=(--set particles.initial_speed=0.5 --set protocol.gas_strain_rate=0.002
         --set 'protocol.radial_stress_ratios=""' --set 'probing.dynamic_states=""'
         --set probing.every_n_increments=1

@@ -8,10 +8,6 @@
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_bonded
 #   usage: bash benchmarks/study_clay_bonded.sh OUT [PYTHON] [ONLY]
 set -u
-OUT=${1:?usage: study_clay_bonded.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 for seed in 11 2 12; do
   run_protocol KB70_s$seed study_demo --workers 2 --set scene.seed=$seed \

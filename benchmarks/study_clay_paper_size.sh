@@ -11,10 +11,6 @@
 #   usage: bash benchmarks/study_clay_paper_size.sh OUT [PYTHON] [ONLY]
 #   ONLY: a bash regular expression; only the runs whose name matches it (e.g. '_s11$')
 set -u
-OUT=${1:?usage: study_clay_paper_size.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_cell_p8.sh"
 cell=("${p8_cell[@]}" --set particles.n_rods=1520
       --set output.every=5000 --set output.checkpoint_every=100000)

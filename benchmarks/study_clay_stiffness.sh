@@ -11,10 +11,6 @@
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_stiffness
 #   usage: bash benchmarks/study_clay_stiffness.sh OUT [PYTHON] [ONLY]
 set -u
-OUT=${1:?usage: study_clay_stiffness.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_cell_p8.sh"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 run() {  # run NAME ARGS...: cell P8 on the default scene

@@ -6,10 +6,6 @@
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_demo_replicas
 #   usage: bash benchmarks/study_demo_replicas.sh OUT [PYTHON] [ONLY]
 set -u
-OUT=${1:?usage: study_demo_replicas.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 for seed in 11 2 12; do
   run_protocol study_demo_s$seed study_demo --workers 2 --set scene.seed=$seed

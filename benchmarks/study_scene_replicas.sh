@@ -7,10 +7,6 @@
 #   python -m bridge calibrate --replicas OUT/study_s11 OUT/study_s2 OUT/study_s12 ...
 #   usage: bash benchmarks/study_scene_replicas.sh OUT [PYTHON] [ONLY]
 set -u
-OUT=${1:?usage: study_scene_replicas.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 run() {  # run NAME ARGS...: the study scene, branches on both cores
   local name=$1; shift

@@ -9,10 +9,6 @@
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_scene_window
 #   usage: bash benchmarks/study_scene_window.sh OUT [PYTHON] [ONLY]
 set -u
-OUT=${1:?usage: study_scene_window.sh OUT [PYTHON] [ONLY]}
-PY=${2:-python}
-ONLY=${3:-}
-mkdir -p "$OUT"
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 run() {  # run NAME ARGS...: the study scene's isotropic path alone, to p = 200
   local name=$1; shift
