@@ -21,6 +21,9 @@ S the stress scale (kPa per DEM stress unit), F the fabric scale.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import xarray as xr
 from scipy import stats
@@ -30,7 +33,14 @@ from .replicas import PROBES, RELAXED, aligned_replicas, history_stage, nan_mean
 from .series import PATHS, RADIAL_STAGE, Convention, check_layout
 from .units import checked
 
-__all__ = ["replica_bands", "mean_and_half_width", "record_labels", "path_members", "CONFIDENCE"]
+__all__ = [
+    "replica_bands",
+    "mean_and_half_width",
+    "record_labels",
+    "summary_labels",
+    "path_members",
+    "CONFIDENCE",
+]
 
 #: Confidence of the interval of the mean (the ``_ci95`` variables).
 CONFIDENCE = 0.95
@@ -74,12 +84,22 @@ def mean_and_half_width(values, confidence: float = CONFIDENCE):
     return mean, half, n
 
 
-def record_labels(stages, mean_stress) -> np.ndarray:
-    """State labels of aligned records: the last record of each stage block is A, B, C or B'
+def record_labels(stages, mean_stress, steps=None, known=None) -> np.ndarray:
+    """State labels of aligned records.
+
+    With ``known`` ({(stage, step): label}, :func:`summary_labels`) and the records' ``steps``,
+    the records the run itself labelled carry those labels and the others ``""``: the only rule
+    that is right when a path goes on past its labelled state (an isotropic path continued past
+    B by ``isotropic_end_stress``, whose last record is not B). Without them, the rule for runs
+    without a summary: the last record of each stage block is A, B, C or B'
     (:data:`END_LABELS`); the radial records, split where p falls (every radial path starts
     from A and loads), end at R1_end, R2_end…; others ``""``."""
     stages = np.asarray(stages).astype(str)
     labels = np.full(stages.size, "", dtype=object)
+    if known and steps is not None:
+        for k, (stage, step) in enumerate(zip(stages, np.asarray(steps), strict=True)):
+            labels[k] = known.get((stage, int(step)), "")
+        return labels.astype(str)
     radial = 0
     for k in range(stages.size):
         last = k + 1 == stages.size or stages[k + 1] != stages[k]
@@ -90,6 +110,22 @@ def record_labels(stages, mean_stress) -> np.ndarray:
         elif last and stages[k] in END_LABELS:
             labels[k] = END_LABELS[stages[k]]
     return labels.astype(str)
+
+
+def summary_labels(folder: Path) -> dict[tuple[str, int], str] | None:
+    """{(stage, step): label} of the labelled states (A, B, C, B', R<k>_end) that a protocol
+    run's ``summary.json`` lists; None when the folder has no summary or it names no stage and
+    step (plain JSON, no code runs)."""
+    try:
+        states = json.loads((Path(folder) / "summary.json").read_text()).get("states", {})
+    except (OSError, ValueError, AttributeError):
+        return None
+    known = {
+        (str(m["stage"]), int(m["step"])): str(label)
+        for label, m in states.items()
+        if isinstance(m, dict) and "stage" in m and "step" in m
+    }
+    return known or None
 
 
 def path_members(stages, labels, mean_stress) -> dict[str, np.ndarray]:
@@ -177,7 +213,8 @@ def replica_bands(
     and the stage). ``stress_scale_kpa``: None reads each run's own (its ``relaxed_states.nc``
     attribute, as the calibration does: :func:`bridge.pipeline.stress_scale_of`);
     ``convention``, ``fabric_scale``: see :class:`bridge.series.Convention`; ``probe_method``:
-    ``"linear"`` or ``"dynamic"`` moduli.
+    ``"linear"`` or ``"dynamic"`` moduli. The records' state labels are those the first run's
+    ``summary.json`` gives (the same record in every aligned replica; :func:`record_labels`).
 
     Returns a dataset with dimension ``state`` (the relaxed path states: ``stage``,
     ``state_label``, and each of :data:`STATE_VARIABLES` as its mean and ``<name>_ci95``, the
@@ -201,7 +238,9 @@ def replica_bands(
     stages = [history_stage(relaxed[0], i) for i in range(relaxed[0].sizes["time"])]
     data["stage"] = ("state", np.array(stages, dtype=object), {"long_name": "DEM stage"})
     _, mean_p, _ = data["mean_stress"]
-    labels = record_labels(stages, mean_p)
+    known = summary_labels(folders[0]) if "step" in relaxed[0] else None
+    steps = relaxed[0]["step"].values if known else None
+    labels = record_labels(stages, mean_p, steps, known)
     data["state_label"] = ("state", labels.astype(object), {"long_name": "state label"})
     if probes is not None:
         moduli = (f"e_oed_v_{probe_method}", f"e_oed_h_{probe_method}")

@@ -38,8 +38,11 @@ def _at(bands: xr.Dataset, label: str, name: str, prefix: str = "") -> tuple[flo
     return float(bands[prefix + name].values[i]), float(bands[f"{prefix}{name}_ci95"].values[i])
 
 
-def _model_at(curves: dict[str, xr.Dataset], label: str) -> xr.Dataset | None:
-    """The study curve's point at a labelled state (A: the start; B, C, B′, R<k>_end: ends)."""
+def _model_at(curves: dict[str, xr.Dataset], label: str, bands: xr.Dataset) -> xr.Dataset | None:
+    """The study curve's point at a labelled state: A the start of the isotropic (or K0) curve;
+    B, C, B′, R<k>_end the point of their path's curve at the labelled record of ``bands``
+    (the curves run along our mean paths, every interval split alike), the curve's end when it
+    cannot be placed. B is not the isotropic curve's end when the path went on past B."""
     path = {"B": "isotropic", "C": "k0", "B'": "unloading"}.get(label)
     if label == "A":
         path = next((p for p in ("isotropic", "k0") if p in curves), None)
@@ -47,7 +50,17 @@ def _model_at(curves: dict[str, xr.Dataset], label: str) -> xr.Dataset | None:
         path = f"radial_{label[1:-4]}"
     if path not in curves:
         return None
-    return curves[path].isel(point=0 if label == "A" else -1)
+    curve = curves[path]
+    if label == "A":
+        return curve.isel(point=0)
+    labels = bands["state_label"].values.astype(str)
+    members = path_members(bands["stage"].values, labels, bands["mean_stress"].values).get(path)
+    record = np.flatnonzero(labels == label)
+    position = np.flatnonzero(members == record[-1]) if members is not None and record.size else []
+    points = curve.sizes["point"]
+    if len(position) == 0 or members.size < 2 or (points - 1) % (members.size - 1):
+        return curve.isel(point=-1)
+    return curve.isel(point=int(position[0]) * ((points - 1) // (members.size - 1)))
 
 
 def _labels(bands: xr.Dataset) -> list[str]:
@@ -92,7 +105,7 @@ def figure2_markdown(
     n, attrs = int(bands["n"]), bands.attrs
     rows = []
     for state in _labels(bands):
-        model = _model_values(_model_at(curves, state))
+        model = _model_values(_model_at(curves, state, bands))
         cells = [state.replace("'", "′")]
         for name, prefix in COLUMNS:
             cells += [_ours(bands, state, name, prefix), f"{model[name]:.4g}" if model else "—"]

@@ -4,6 +4,8 @@ its own stress scale)."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -11,9 +13,16 @@ from matplotlib.container import ErrorbarContainer
 from scipy import stats
 
 from bridge.__main__ import main
-from bridge.replica_bands import mean_and_half_width
+from bridge.replica_bands import mean_and_half_width, path_members, record_labels, summary_labels
+from bridge.replicas import history_stage
 from bridge.series import Convention, SeriesError
-from bridge.study_figure import figure2, replica_bands, study_curves, write_study_figure
+from bridge.study_figure import (
+    figure2,
+    figure2_markdown,
+    replica_bands,
+    study_curves,
+    write_study_figure,
+)
 from bridge.synthetic import DEM_NOISE, synthetic_results
 from tiv_model import drivers
 from tiv_model.integrate import Control, initial_state
@@ -243,3 +252,64 @@ def test_command_line(replicas, tmp_path, capsys):
     assert "give a folder" in capsys.readouterr().err
     with pytest.raises(SeriesError):  # --debug: the traceback instead of the line
         main(["figure2", "--replicas", str(replicas[0]), "--out", str(out), "--debug"])
+
+
+def _labelled_past_b(folder, seed, scale):
+    """A synthetic run whose isotropic path went on past B (``isotropic_end_stress``): its
+    records carry steps, and its summary.json labels B at the second-last A→B record."""
+    replica(folder, seed, scale)
+    ds = xr.load_dataset(folder / "relaxed_states.nc")
+    ds["step"] = ("time", 1000.0 * np.arange(1, ds.sizes["time"] + 1))
+    ds.to_netcdf(folder / "relaxed_states.nc")
+    stages = [history_stage(ds, i) for i in range(ds.sizes["time"])]
+    labels = record_labels(stages, ds["mean_stress"].values)
+    iso = [i for i, s in enumerate(stages) if s == "A_to_B"]
+    states = {
+        str(label): {"stage": stages[i], "step": int(ds["step"].values[i])}
+        for i, label in enumerate(labels)
+        if label and label != "B"
+    }
+    states["B"] = {"stage": "A_to_B", "step": int(ds["step"].values[iso[-2]])}
+    (folder / "summary.json").write_text(json.dumps({"states": states}))
+    return iso[-2]
+
+
+def test_labels_come_from_the_runs_summary_when_a_path_goes_on_past_its_state(tmp_path):
+    runs = [tmp_path / f"seed-{k}" for k in (1, 2)]
+    b = [_labelled_past_b(run, k, 1.0) for k, run in enumerate(runs, start=1)][0]
+    bands = replica_bands(runs)
+    labels = bands["state_label"].values.astype(str)
+    assert np.flatnonzero(labels == "B").tolist() == [b]  # not the isotropic path's last record
+    assert [x for x in labels if x] == ["A", "B", "C", "B'", "R1_end"]
+    curves = study_curves(bands, TABLE1, substeps=2)
+    table = figure2_markdown(bands, curves)
+    row = next(line for line in table.splitlines() if line.startswith("| B |"))
+    cells = [c.strip() for c in row.split("|")[1:-1]]
+    p = bands["mean_stress"].values[b]
+    assert cells[1] == f"{p:.4g} ± {bands['mean_stress_ci95'].values[b]:.2g}"
+    iso = path_members(bands["stage"].values, labels, bands["mean_stress"].values)["isotropic"]
+    point = 2 * int(np.flatnonzero(iso == b)[0])  # two substeps per interval
+    assert point < curves["isotropic"].sizes["point"] - 1
+    assert cells[2] == f"{float(curves['isotropic']['mean_stress'][point]):.4g}" == f"{p:.4g}"
+    # without a summary (or without steps) the last record of the stage block is B, as before
+    for run in runs:
+        (run / "summary.json").unlink()
+    labels = replica_bands(runs)["state_label"].values.astype(str)
+    assert np.flatnonzero(labels == "B").tolist() == [b + 1]
+
+
+def test_summary_labels_read_plain_json_and_refuse_nothing(tmp_path):
+    assert summary_labels(tmp_path) is None  # no summary
+    (tmp_path / "summary.json").write_text("not json")
+    assert summary_labels(tmp_path) is None
+    (tmp_path / "summary.json").write_text(json.dumps({"states": {"A": {"step": 3}}}))
+    assert summary_labels(tmp_path) is None  # no stage: cannot be placed
+    states = {"A": {"stage": "isotropic_to_A", "step": 3}, "B": {"stage": "A_to_B", "step": 9}}
+    (tmp_path / "summary.json").write_text(json.dumps({"states": states}))
+    assert summary_labels(tmp_path) == {("isotropic_to_A", 3): "A", ("A_to_B", 9): "B"}
+    assert record_labels(
+        ["isotropic_to_A", "A_to_B", "A_to_B"],
+        [1.0, 2.0, 4.0],
+        [3, 9, 12],
+        summary_labels(tmp_path),
+    ).tolist() == ["A", "B", ""]
