@@ -54,8 +54,9 @@ rolling resistance on and off, 8 and 10 discs, and, for the chosen cell, rigid a
 (`study_clay_bonded`); stage 2 (1520 rods) ran the chosen cell rigid (P8, then the `study` scene).
 Not run: the F_max = 1000 cell (k_n 3e5) and stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
-calibration on the `study` replicas beside Table 1: `calibration_study/`; the study's Figure 2 on
-them: `figure2_study/`.
+calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
+replicas) and `calibration_study_secant/` (the scene's secant servo); the study's Figure 2 on them:
+`figure2_study/`, `figure2_study_secant/`.
 
 """
 
