@@ -5,7 +5,7 @@
 # criterion at the same reduced pressure P* = p d / F_max as the study's (0.5/300), the isotropic
 # path on to 3 F_max/d = 3000; three seeds, `--workers 2`. The criteria, stated before the runs:
 # benchmarks/results/study_clay_f1000.md. Run from a frozen clone, one run at a time. Then:
-#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_f1000
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_f1000_cells
 #   usage: bash benchmarks/study_clay_f1000.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
