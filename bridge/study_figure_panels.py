@@ -56,9 +56,11 @@ def _model_at(curves: dict[str, xr.Dataset], label: str, bands: xr.Dataset) -> x
     labels = bands["state_label"].values.astype(str)
     members = path_members(bands["stage"].values, labels, bands["mean_stress"].values).get(path)
     record = np.flatnonzero(labels == label)
-    position = np.flatnonzero(members == record[-1]) if members is not None and record.size else []
     points = curve.sizes["point"]
-    if len(position) == 0 or members.size < 2 or (points - 1) % (members.size - 1):
+    if members is None or record.size == 0 or members.size < 2 or (points - 1) % (members.size - 1):
+        return curve.isel(point=-1)
+    position = np.flatnonzero(members == record[-1])
+    if position.size == 0:
         return curve.isel(point=-1)
     return curve.isel(point=int(position[0]) * ((points - 1) // (members.size - 1)))
 
