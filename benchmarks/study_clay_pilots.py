@@ -46,6 +46,7 @@ COLUMNS = (
     ("fabric_C", "fabric deviator at C", 3),
     ("N_disc", "N (disc area)", 3),
     ("N_rectangle", "N (rod rectangle)", 3),
+    ("max_overlap", "max overlap δ/d", 2),
     ("minutes", "wall (min)", 2),
 )
 

@@ -132,7 +132,9 @@ def run_findings(folder: str | Path) -> dict:
     ``iso_fabric_max``, ``iso_fabric_within_noise``, ``iso_ratio``, ``k0_fabric``, ``k0_p``,
     ``k0_ratio``, ``lambda_star``, ``r2``, ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``,
     ``fabric_C``, ``k0_C``, ``modulus_exponent``, ``ev_over_p_B`` and those on the mapped stress
-    window), ``seconds``, ``workers``; ``anisotropy_C`` when the folder holds
+    window), ``seconds``, ``workers``, ``max_overlap`` (the largest contact overlap δ/d at the
+    labelled states' configurations, :func:`dem_taichi.analysis.overlaps.run_max_overlap`; NaN
+    for bonded rods or without them); ``anisotropy_C`` when the folder holds
     ``anisotropy.json``. The files give the arrays (:func:`path_arrays`, :func:`probe_arrays`),
     the scene's stress scale and the rod shape; what is computed from them is
     :func:`findings_from_arrays`, which a run in memory calls too
@@ -155,6 +157,9 @@ def run_findings(folder: str | Path) -> dict:
         _rod_shape(relaxed.attrs),
     )
     row |= {"seconds": summary["total_seconds"], "workers": summary.get("workers", 1)}
+    from dem_taichi.analysis.overlaps import run_max_overlap  # scipy's tree, matplotlib's helpers
+
+    row["max_overlap"] = run_max_overlap(folder)
     aniso = folder / "anisotropy.json"
     if aniso.exists():
         rows = {r["state"]: r for r in json.loads(aniso.read_text())}

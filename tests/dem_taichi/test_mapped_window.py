@@ -398,7 +398,8 @@ def test_findings_from_arrays_are_run_findings_without_the_run_record(tmp_path):
     shape = (rods.n_spheres, rods.spacing, rods.diameter)
     found = findings_from_arrays(path, probes, 40, 1.0, shape)
     row = run_findings(folder)
-    assert set(row) - set(found) == {"run", "max_i", "seconds", "workers"}
+    assert set(row) - set(found) == {"run", "max_i", "seconds", "workers", "max_overlap"}
+    assert math.isnan(row["max_overlap"])  # the folder has no configurations
     np.testing.assert_equal(found, {key: row[key] for key in found})  # NaN equals NaN
     assert found["N_rectangle"] == pytest.approx(1.30 * math.pi / 4.0, rel=1e-12)
     assert math.isnan(findings_from_arrays(path, probes, 40)["N_rectangle"])  # no rod shape
