@@ -36,6 +36,7 @@ EXPERIMENTS = (
     ("study_demo_secant_replicas.csv", "study_demo_replicas.sh", "study_servo.md"),
     ("study_scene_secant_replicas.csv", "study_scene_replicas.sh", "study_servo.md"),
     ("study_clay_f1000_cells.csv", "study_clay_f1000.sh", "study_clay_f1000.md"),
+    ("study_clay_looser_cells.csv", "study_clay_looser.sh", "study_clay_looser.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -54,7 +55,10 @@ Where the matrix of the issue stands: stage 1 (300 rods) covered F_max 10 (the `
 rolling resistance on and off, 8 and 10 discs, and, for the chosen cell, rigid against bonded rods
 (`study_clay_bonded`); stage 2 (1520 rods) ran the chosen cell rigid (P8, then the `study` scene).
 The F_max = 1000 cell (k_n 3e5, `study_clay_f1000`) is the `study_demo` material nearly
-rescaled (Π_F 3.3e-3 against 4.3e-3): λ* 0.155 ± 0.006 on the mapped window, the same. Not run:
+rescaled (Π_F 3.3e-3 against 4.3e-3): λ* 0.155 ± 0.006 on the mapped window, the same. A sparser
+gas (area fraction 0.05, aged 2000; `study_clay_looser`, cell SP05) is the first cell whose mean
+λ* reaches 0.18 at 300 rods (0.185 ± 0.041), at the study's stiffness level; its stage 2 at 1520
+rods is on its page. Not run: 12-disc rods (D12), and
 stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
