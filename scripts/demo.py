@@ -292,7 +292,7 @@ HEADLINE_ROWS = (
     ("N (v at 100 kPa), disc area", "N_disc", 3, "table1_N"),
     ("N, rod rectangle L × d", "N_rectangle", 3, "table1_N"),
     ("kPa per DEM unit (E_v/p = 125)", "stress_scale_kpa_measured", 3, "—"),
-    ("largest contact overlap δ/d (A, B, C, B′)", "max_overlap", 2, "< 0.01 (issue 19's bar)"),
+    ("largest contact overlap δ/d, labelled states", "max_overlap", 2, "< 0.01 (issue 19's bar)"),
 )
 
 

@@ -83,8 +83,8 @@ def test_the_report_opens_with_the_study_findings_beside_the_replicas_and_table1
     assert "0.660 (Table 1 model, σ_v = 100 kPa)" in rows["K0 at C"]
     assert "| 0.80 (n + r, Table 1) |" in rows["E_v ∝ p^n over 1–200 kPa"]
     assert "| 200 | — | 0.971 ± 0.099 (3 seeds) |" in rows["kPa per DEM unit (E_v/p = 125)"]
-    overlap = rows["largest contact overlap δ/d (A, B, C, B′)"]
-    assert overlap.startswith("| largest contact overlap δ/d (A, B, C, B′) | — |")  # no files
+    overlap = rows["largest contact overlap δ/d, labelled states"]
+    assert overlap.startswith("| largest contact overlap δ/d, labelled states | — |")  # no files
     assert overlap.endswith("| < 0.01 (issue 19's bar) |")
     assert "20: 1.100, 100: 1.400" in text and "E_h/E_v = 2.30 at σ_v = 100 kPa" in text
     assert "cannot determine the fabric law's c and s" in text
