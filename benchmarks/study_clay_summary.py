@@ -37,6 +37,7 @@ EXPERIMENTS = (
     ("study_scene_secant_replicas.csv", "study_scene_replicas.sh", "study_servo.md"),
     ("study_clay_f1000_cells.csv", "study_clay_f1000.sh", "study_clay_f1000.md"),
     ("study_clay_looser_cells.csv", "study_clay_looser.sh", "study_clay_looser.md"),
+    ("study_clay_looser_size.csv", "study_clay_looser.sh", "study_clay_looser.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -57,8 +58,9 @@ rolling resistance on and off, 8 and 10 discs, and, for the chosen cell, rigid a
 The F_max = 1000 cell (k_n 3e5, `study_clay_f1000`) is the `study_demo` material nearly
 rescaled (Π_F 3.3e-3 against 4.3e-3): λ* 0.155 ± 0.006 on the mapped window, the same. A sparser
 gas (area fraction 0.05, aged 2000; `study_clay_looser`, cell SP05) is the first cell whose mean
-λ* reaches 0.18 at 300 rods (0.185 ± 0.041), at the study's stiffness level; its stage 2 at 1520
-rods is on its page. Not run: 12-disc rods (D12), and
+λ* reaches 0.18 at 300 rods (0.185 ± 0.041), at the study's stiffness level, and at 1520 rods
+(SP05L, without radial paths: 0.182 ± 0.028, E_v/p at B 133 ± 24, C − B +0.36 ± 0.35): the
+candidate preparation for the `study` scene, pending its replicas with the radial paths. Not run: 12-disc rods (D12), and
 stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
