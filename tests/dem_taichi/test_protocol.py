@@ -729,8 +729,10 @@ def memory_findings_equal_the_folder_findings(result) -> None:
     path, probes = path_arrays(result), probe_arrays(result)
     memory = findings_from_arrays(path, probes, result.n_rods, result.stress_scale_kpa, shape)
     folder = run_findings(result.out_dir)
-    # what the folder adds is the run's record, not a finding over its arrays
-    assert set(folder) - set(memory) == {"run", "max_i", "seconds", "workers"}
+    # what the folder adds is the run's record and what its saved configurations give, not a
+    # finding over its arrays
+    assert set(folder) - set(memory) == {"run", "max_i", "seconds", "workers", "max_overlap"}
+    assert 0.0 < folder["max_overlap"] < 0.05  # rigid rods at their labelled states
     np.testing.assert_equal(memory, {key: folder[key] for key in memory})  # NaN equals NaN
     assert math.isfinite(memory["lambda_star"]) and memory["iso_ratio"]
     np.testing.assert_equal(states_from_arrays(path.states, probes), state_findings(result.out_dir))
