@@ -8,7 +8,7 @@
 #         0.133 -> 0.147 in study_clay_agitated)
 # Three seeds each, `--workers 2`, no radial paths (as study_demo). The criteria, stated before
 # the runs: benchmarks/results/study_clay_looser.md. Run from a frozen clone, one run at a time:
-#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_looser
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_looser_cells
 #   usage: bash benchmarks/study_clay_looser.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
