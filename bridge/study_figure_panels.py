@@ -53,9 +53,8 @@ def _model_at(curves: dict[str, xr.Dataset], label: str, bands: xr.Dataset) -> x
     curve = curves[path]
     if label == "A":
         return curve.isel(point=0)
-    labels = bands["state_label"].values.astype(str)
-    members = path_members(bands["stage"].values, labels, bands["mean_stress"].values).get(path)
-    record = np.flatnonzero(labels == label)
+    members = _members(bands, "").get(path)
+    record = np.flatnonzero(bands["state_label"].values.astype(str) == label)
     points = curve.sizes["point"]
     if members is None or record.size == 0 or members.size < 2 or (points - 1) % (members.size - 1):
         return curve.isel(point=-1)
