@@ -164,19 +164,22 @@ def calibrate_from_results(
         probes = all_probe_series(probes_data, convention, options.probe_method)
     elif "elastic" in stages:
         stages = tuple(s for s in stages if s != "elastic")
-    stage_failures: dict[str, str] = {}
+    # the fabric stage (model runs along K0 and the radial paths) can fail where the model
+    # reaches a limit point at every parameter set the fit tries; the cheap stages need it not,
+    # so they are kept, and the fabric parameters keep their starting values (a set-up error of
+    # the stage, e.g. an empty search range, is a CalibrationError and still raises). Fitted
+    # after the cheap stages (the default), calibrate keeps them itself; coupled to them
+    # (omega_stage = "fabric"), they are fitted again without it.
     try:
-        result = calibrate(series, probes, options.calibration, stages)
+        result = calibrate(series, probes, options.calibration, stages, keep_cheap_stages=True)
     except ModelFailureError as error:
-        # the fabric stage (model runs along K0 and the radial paths) can fail where the model
-        # reaches a limit point at every parameter set the fit tries; the cheap stages need it
-        # not, so they are kept, and the fabric parameters keep their starting values (a set-up
-        # error of the stage, e.g. an empty search range, is a CalibrationError and still raises)
         if error.stage != "fabric":
             raise
-        stage_failures["fabric"] = str(error)
         stages = tuple(s for s in stages if s != "fabric")
         result = calibrate(series, probes, options.calibration, stages)
+        result.not_fitted["fabric"] = str(error)
+    stage_failures = dict(result.not_fitted)
+    stages = tuple(s for s in stages if s not in stage_failures)
     seconds_calibration = time.perf_counter() - t0
     ide = identifiability(result, series, probes) if options.identifiability else None
     model_options = options.calibration.model_options

@@ -458,12 +458,19 @@ def calibrate(
     probes: Mapping[str, xr.Dataset],
     options: CalibrationOptions | None = None,
     stages: tuple[str, ...] = STAGES,
+    keep_cheap_stages: bool = False,
 ) -> CalibrationResult:
     """Calibrate the TIV model on DEM series (:mod:`bridge.series`), staged (module docstring).
 
     ``series``: path series with at least ``"isotropic"`` and ``"k0"`` (for the stages run);
     ``probes``: probe series by path (``"isotropic"``, ``"unloading"``...).
     ``stages``: the stages to run, in order (a subset of ``STAGES``).
+    ``keep_cheap_stages``: where the fabric stage runs after the cheap ones (ω in the elastic
+    stage, the default) and its model fails at every parameter set the fit tries
+    (:class:`ModelFailureError`), return the cheap stages' result with the failure in
+    :attr:`CalibrationResult.not_fitted` and the fabric parameters at their starting values,
+    instead of raising. A fabric stage coupled to the others (``omega_stage = "fabric"``)
+    raises either way: its failure leaves no cheap result of its own.
     """
     options = options or CalibrationOptions()
     bad = sorted(set(stages) - set(STAGES))
@@ -489,6 +496,7 @@ def calibrate(
     groups = [stages] if coupled else [cheap, tuple(s for s in stages if s == "fabric")]
     passes = 0
     change = 0.0
+    not_fitted: dict[str, str] = {}
     for group in groups:
         if not group:
             continue
@@ -497,7 +505,14 @@ def calibrate(
             passes += 1
             before = np.array(list(params.as_symbols().values()))
             for stage in group:
-                params, fits[stage] = _fit_stage(built[stage], params, options.free(stage), options)
+                try:
+                    params, fits[stage] = _fit_stage(
+                        built[stage], params, options.free(stage), options
+                    )
+                except ModelFailureError as error:
+                    if not (keep_cheap_stages and stage == "fabric" and not coupled):
+                        raise
+                    not_fitted[stage] = str(error)
             history.append(params.as_symbols())
             after = np.array(list(params.as_symbols().values()))
             # relative change; parameters at a zero bound (r = 0...) count in absolute terms
@@ -507,7 +522,14 @@ def calibrate(
             if change < options.pass_tolerance:
                 break
     return CalibrationResult(
-        params, initial, [fits[s] for s in stages], options, passes, history, change
+        params,
+        initial,
+        [fits[s] for s in stages if s in fits],
+        options,
+        passes,
+        history,
+        change,
+        not_fitted,
     )
 
 

@@ -74,6 +74,8 @@ class CalibrationResult:
     history_: list[dict[str, float]] = field(default_factory=list)
     #: largest relative parameter change in the last pass over coupled stages
     last_change: float = 0.0
+    #: stages asked for but not fitted, and why (``calibrate(..., keep_cheap_stages=True)``)
+    not_fitted: dict[str, str] = field(default_factory=dict)
 
     @property
     def standard_errors_(self) -> dict[str, float]:
@@ -175,6 +177,9 @@ class CalibrationResult:
             for key, rms in st.residual_rms.items():
                 lines.append(f"    RMS {key}: {rms:.4g}")
             lines.append("    fitted: " + ", ".join(f"{p}:{v}" for p, v in st.fitted))
+        for stage, why in self.not_fitted.items():
+            lines.append(f"[[Stage {stage}: not fitted]]")
+            lines.append(f"    {why}")
         warnings = self.warnings()
         if warnings:
             lines.append("[[Warnings]]")
@@ -193,6 +198,7 @@ class CalibrationResult:
             "units": dict(UNITS),
             "model_options": self.options.model_options.describe(),
             "passes": self.passes_run,
+            "stages_not_fitted": dict(self.not_fitted),
             "stages": [
                 {
                     "name": st.name,

@@ -249,3 +249,40 @@ def test_a_trial_point_with_a_negative_model_modulus_is_a_penalty_not_a_warning(
         # started there, with g alone free, every trial point nearby is a penalty
         with pytest.raises(CalibrationError, match="non-finite residuals"):
             fit_stage(stage, trial, ("g",), CalibrationOptions())
+
+
+def test_a_failed_fabric_stage_keeps_the_cheap_stages_fitted_once(data, monkeypatch):
+    """``keep_cheap_stages``: the fabric stage's model failing at every trial point leaves the
+    cheap stages' result, fitted once (not again without the fabric stage), with the failure
+    recorded; without the flag, or with the fabric stage coupled to the others, it raises."""
+    import bridge.calibration.fit as fit
+    from bridge.calibration import ModelFailureError
+
+    series, probes = data
+    real = fit._fit_stage
+    calls: list[str] = []
+
+    def fabric_fails(stage, params, free, options):
+        calls.append(stage.name)
+        if stage.name == "fabric":
+            raise ModelFailureError("fabric", "stage fabric: a limit point along K0")
+        return real(stage, params, free, options)
+
+    monkeypatch.setattr(fit, "_fit_stage", fabric_fails)
+    options = CalibrationOptions(max_k0_increments=6)
+    result = calibrate(series, probes, options, keep_cheap_stages=True)
+    assert result.not_fitted == {"fabric": "stage fabric: a limit point along K0"}
+    assert [st.name for st in result.stages_] == ["compressibility", "elastic"]
+    assert calls.count("fabric") == 1 and calls[-1] == "fabric"  # the cheap stages ran once
+    got = result.params_.as_symbols()
+    for sym in ELASTIC_AND_VOLUME:
+        assert got[sym] == pytest.approx(TRUTH.as_symbols()[sym], rel=1e-8), sym
+    for sym in ("M", "c", "s", "z"):  # kept at the starting values
+        assert got[sym] == TABLE1.as_symbols()[sym]
+    assert result.to_dict()["stages_not_fitted"] == result.not_fitted
+    assert "[[Stage fabric: not fitted]]" in result.report()
+    with pytest.raises(ModelFailureError, match="limit point"):
+        calibrate(series, probes, options)
+    coupled = CalibrationOptions(max_k0_increments=6, omega_stage="fabric")
+    with pytest.raises(ModelFailureError, match="limit point"):
+        calibrate(series, probes, coupled, keep_cheap_stages=True)

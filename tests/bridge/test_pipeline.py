@@ -240,7 +240,9 @@ def test_the_pipeline_keeps_the_cheap_stages_when_the_fabric_stage_fails(
     options = PipelineOptions(fabric_scale=CONVENTION.fabric_scale, calibration=FAST)
     real = bridge.pipeline.calibrate
 
-    def fabric_fails(series, probes, calibration_options, stages):
+    def fabric_fails(series, probes, calibration_options, stages, keep_cheap_stages=False):
+        # as a fabric stage coupled to the cheap ones fails: the pipeline fits them again
+        # without it (the uncoupled case, kept inside calibrate, is tested in test_calibration)
         if "fabric" in stages:
             raise ModelFailureError(
                 "fabric", "stage fabric: the model fails at the best parameters found"
@@ -256,7 +258,24 @@ def test_the_pipeline_keeps_the_cheap_stages_when_the_fabric_stage_fails(
     assert "stages not fitted" in report
     assert (tmp_path / "out" / "calibration.json").exists()
 
-    def fabric_misconfigured(series, probes, calibration_options, stages):
+    # the default (fabric stage after the cheap ones): calibrate keeps them, fitted once
+    import bridge.calibration.fit as fit
+
+    monkeypatch.setattr(bridge.pipeline, "calibrate", real)
+    real_fit_stage = fit._fit_stage
+
+    def fabric_stage_fails(stage, params, free, calibration_options):
+        if stage.name == "fabric":
+            raise ModelFailureError("fabric", "stage fabric: a limit point along K0")
+        return real_fit_stage(stage, params, free, calibration_options)
+
+    monkeypatch.setattr(fit, "_fit_stage", fabric_stage_fails)
+    kept = calibrate_from_results(history, probes, tmp_path / "out_kept", options)
+    assert kept["parameters"] == outcome["parameters"]
+    assert "fabric: stage fabric: a limit point" in kept["data"]["stages not fitted"]
+    assert "fabric" not in kept["data"]["stages"]
+
+    def fabric_misconfigured(series, probes, calibration_options, stages, **_):
         raise CalibrationError("stage fabric: empty search range for ['s']")
 
     monkeypatch.setattr(bridge.pipeline, "calibrate", fabric_misconfigured)
