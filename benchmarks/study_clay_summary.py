@@ -38,6 +38,7 @@ EXPERIMENTS = (
     ("study_clay_f1000_cells.csv", "study_clay_f1000.sh", "study_clay_f1000.md"),
     ("study_clay_looser_cells.csv", "study_clay_looser.sh", "study_clay_looser.md"),
     ("study_clay_looser_size.csv", "study_clay_looser.sh", "study_clay_looser.md"),
+    ("study_clay_looser_d12.csv", "study_clay_looser.sh", "study_clay_looser.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -61,8 +62,9 @@ rescaled (Π_F 3.3e-3 against 4.3e-3): λ* 0.155 ± 0.006 on the mapped window, 
 gas (area fraction 0.05, aged 2000; `study_clay_looser`, cell SP05) is the first cell whose mean
 λ* reaches 0.18 at 300 rods (0.185 ± 0.041), at the study's stiffness level, and at 1520 rods
 (SP05L, without radial paths: 0.182 ± 0.028, E_v/p at B 133 ± 24, C − B +0.36 ± 0.35): the
-candidate preparation for the `study` scene, pending its replicas with the radial paths. Not run:
-12-disc rods (D12), and stage 2 with bonded rods (12,160 bodies, an estimated
+candidate preparation for the `study` scene, pending its replicas with the radial paths. Longer
+rods (12 discs, D12) loosen the gel at A but give λ* 0.173 ± 0.074, short of 0.18. Not run:
+stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas) and `calibration_study_secant/` (the scene's secant servo); the study's Figure 2 on them:
