@@ -18,5 +18,6 @@ for seed in 11 2 12; do
 done
 for seed in 11 2 12; do
   run_protocol D12_s$seed study_demo --workers 2 --set scene.seed=$seed \
-    --set particles.n_spheres=12
+    --set particles.n_spheres=12 \
+    --set particles.initial_area_fraction=0.1 --set protocol.aggregation_time=1000
 done

@@ -5,6 +5,11 @@
 #   $PY -m dem_taichi protocol SCENE --out $OUT/NAME ARGS...
 # unless NAME has finished ($OUT/NAME/summary.json exists) or does not match $ONLY (when set);
 # its output goes to $OUT/NAME.log, and "NAME rc R wall S s" is appended to $OUT/summary.txt.
+# The scripts that run the `study` or `study_demo` scenes reproduce their pages' tables from a
+# clone of the commit the page names. Since 2026-12-03 both scenes age a gas of area fraction 0.05
+# for 2000 time units (cell SP05, study_clay_looser.md); runs of the earlier material (0.10, 1000)
+# on a later clone need `--set particles.initial_area_fraction=0.1 --set
+# protocol.aggregation_time=1000` (study_clay_looser.sh's D12 sets them).
 OUT=${1:?usage: $(basename "$0") OUT [PYTHON] [ONLY]}
 PY=${2:-python}
 ONLY=${3:-}

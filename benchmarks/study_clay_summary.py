@@ -37,8 +37,9 @@ EXPERIMENTS = (
     ("study_scene_secant_replicas.csv", "study_scene_replicas.sh", "study_servo.md"),
     ("study_clay_f1000_cells.csv", "study_clay_f1000.sh", "study_clay_f1000.md"),
     ("study_clay_looser_cells.csv", "study_clay_looser.sh", "study_clay_looser.md"),
-    ("study_clay_looser_size.csv", "study_clay_looser.sh", "study_clay_looser.md"),
+    ("study_clay_looser_size.csv", "sweeps/study_sp05.toml", "study_clay_looser.md"),
     ("study_clay_looser_d12.csv", "study_clay_looser.sh", "study_clay_looser.md"),
+    ("study_scene_sp05_replicas.csv", "sweeps/study_sp05_radial.toml", "study_clay_looser.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -61,14 +62,16 @@ The F_max = 1000 cell (k_n 3e5, `study_clay_f1000`) is the `study_demo` material
 rescaled (Π_F 3.3e-3 against 4.3e-3): λ* 0.155 ± 0.006 on the mapped window, the same. A sparser
 gas (area fraction 0.05, aged 2000; `study_clay_looser`, cell SP05) is the first cell whose mean
 λ* reaches 0.18 at 300 rods (0.185 ± 0.041), at the study's stiffness level, and at 1520 rods
-(SP05L, without radial paths: 0.182 ± 0.028, E_v/p at B 133 ± 24, C − B +0.36 ± 0.35): the
-candidate preparation for the `study` scene, pending its replicas with the radial paths. Longer
+(SP05L, without radial paths: 0.182 ± 0.028, E_v/p at B 133 ± 24, C − B +0.36 ± 0.35), and with
+the radial paths (SP05R, A to B′ bit for bit SP05L's, all converged): since 2026-12-03 the
+`study` scene's preparation. Longer
 rods (12 discs, D12) loosen the gel at A but give λ* 0.173 ± 0.074, short of 0.18. Not run:
 stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
-replicas) and `calibration_study_secant/` (the scene's secant servo); the study's Figure 2 on them:
-`figure2_study/`, `figure2_study_secant/`.
+replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
+scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
+`figure2_study_sp05/`.
 
 """
 
@@ -145,9 +148,15 @@ def _commands() -> str:
     lines = ["", "## The commands that reproduce each table", ""]
     for table, script, _ in EXPERIMENTS:
         out = table.removesuffix(".csv")
+        if script.endswith(".toml"):  # a sweep: its members linked as <cell>_s<seed> in OUT
+            run = (
+                f"`python -m dem_taichi sweep run benchmarks/{script} --out SWEEP --n-workers 2` "
+                "from a frozen clone, the members linked as `<cell>_s<seed>` in OUT"
+            )
+        else:
+            run = f"`bash benchmarks/{script} OUT PY` from a frozen clone (one run at a time)"
         lines.append(
-            f"- `{table}`: `bash benchmarks/{script} OUT PY` from a frozen clone (one run at a "
-            f"time), then `python benchmarks/study_clay_pilots.py OUT --out "
+            f"- `{table}`: {run}, then `python benchmarks/study_clay_pilots.py OUT --out "
             f"benchmarks/results/{out}`."
         )
     lines.append("- this page: `python benchmarks/study_clay_summary.py` (reads the tables above).")

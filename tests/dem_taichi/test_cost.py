@@ -71,13 +71,13 @@ def test_long_runs_get_a_warning_line_and_short_ones_only_the_estimate():
 def test_protocol_estimate_counts_the_ageing_and_the_isotropic_path_past_B():
     """The ageing of an aggregation stage is counted exactly (time / Δt); an isotropic path
     continued past B costs more; the `study` scene's estimate is within ×3 of its measured run
-    (seed 11, 1520 rods: 3.12 M steps, 0.78 M of them ageing; study_servo.md)."""
+    (seed 11, 1520 rods: 4.14 M steps, 1.55 M of them ageing; study_scene_sp05_replicas.md)."""
     from dem_taichi.scene.options import scene_from_options
 
     study = load_scene("study")
-    longer = scene_from_options("study", overrides=["protocol.aggregation_time=2000"])
+    longer = scene_from_options("study", overrides=["protocol.aggregation_time=3000"])
     extra = estimate_cost(longer, "protocol").steps - estimate_cost(study, "protocol").steps
     assert extra == pytest.approx(1000.0 / study.time_step, rel=1e-9)
     further = scene_from_options("study", overrides=["protocol.isotropic_end_stress=1000"])
     assert estimate_cost(further, "protocol").steps > estimate_cost(study, "protocol").steps
-    assert 3.12e6 / 3 < estimate_cost(study, "protocol").steps < 3 * 3.12e6
+    assert 4.14e6 / 3 < estimate_cost(study, "protocol").steps < 3 * 4.14e6

@@ -30,6 +30,10 @@ DECLARED = {
     # beyond the null pair's spread over 5 seeds (benchmarks/results/study_servo.md)
     ("protocol", "servo_stiffness"): "secant",
     ("protocol", "servo_inertial_number_safety"): 1.0,
+    # a sparser gas aged twice as long (cell SP05): λ* on 1–200 kPa 0.182 ± 0.028 against
+    # 0.158 ± 0.014 at 1520 rods, E_v/p at B kept (benchmarks/results/study_clay_looser.md)
+    ("particles", "initial_area_fraction"): 0.05,
+    ("protocol", "aggregation_time"): 2000.0,
     # cost only: the probes' moduli within 3.5e-5
     ("probing", "linear_relax_unbalanced_force"): 1.0e-5,
     ("scene", "name"): "study",
