@@ -92,8 +92,25 @@ def aggregate(runner) -> dict:
         measures = start
     details["area_fraction"] = 1.0 / measures["specific_volume"]
     details["coordination_number_compressed"] = measures["coordination_number"]
-    # 2. ageing at fixed cell
+    # 2. ageing at fixed cell, at factor × the scene's Δt (restored after it, also on error)
+    factor = c.aggregation_time_step_factor or 1.0
+    base_dt = sim.time_step
+    if factor != 1.0:
+        sim.set_parameters(time_step=base_dt * factor)
+        details["time_step_factor"] = factor
+    try:
+        return _age(runner, c, sim, stage, record, every, progress, measures, details, t0)
+    finally:
+        if factor != 1.0:
+            sim.set_parameters(time_step=base_dt)
+
+
+def _age(runner, c, sim, stage, record, every, progress, measures, details, t0) -> dict:
+    """Step 2 of :func:`aggregate`: the ageing at fixed cell, at the time step set."""
     dt = sim.time_step
+    factor = c.aggregation_time_step_factor or 1.0
+    # the thermostat's check interval kept in time (the scene's relax_check_steps at its Δt)
+    check_steps = max(int(round(c.relax_check_steps / factor)), 1)
     limit = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
     assert limit is not None  # ProtocolConfig.check
     total = max(int(math.ceil(limit / dt - 1e-9)), 1)
@@ -102,7 +119,7 @@ def aggregate(runner) -> dict:
     seed = sim.scene.scene.seed
     keep = 0.0
     if c.aggregation_thermostat_time is not None:
-        keep = math.exp(-c.relax_check_steps * dt / c.aggregation_thermostat_time)
+        keep = math.exp(-check_steps * dt / c.aggregation_thermostat_time)
         details["thermostat_time"] = c.aggregation_thermostat_time
         details["thermostat_keep"] = keep
 
@@ -126,7 +143,7 @@ def aggregate(runner) -> dict:
     z = measures["coordination_number"]
     reached = target_z is not None and z >= target_z  # by the compression already
     while not reached and done < total:
-        n = min(c.relax_check_steps, total - done)
+        n = min(check_steps, total - done)
         measures = _hold_explained(sim, stage, n, details["thermostat"])
         done += n
         check += 1

@@ -15,7 +15,7 @@
   ``pressure_tolerance``; the isotropic path's p_end is ``isotropic_end_stress`` when set) ×
   sqrt(path_increments / 6) × 0.5 for the secant servo (measured:
   ``servo_trade_default_acidic.md``), plus 2e5 steps per dynamic probe sweep, plus the ageing of
-  an aggregation stage, exactly (its time / Δt; ``aggregation_max_time`` for "coordination").
+  an aggregation stage, exactly (its time / its Δt; ``aggregation_max_time`` for "coordination").
   Good to a factor ~3 (chaotic packings, the servo): the `study` scene's seed-11 run took 3.12 M
   steps, of which 0.78 M of ageing (``benchmarks/results/study_servo.md``).
 - **CPU time**: steps × (a + b · discs), a = 1.2e-4 s per step and b = 3.3e-8 s per
@@ -159,7 +159,8 @@ def _protocol_steps(scene) -> float:
     ageing = 0.0
     if c.aggregates:
         ageing_time = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
-        ageing = (ageing_time or 0.0) / scene.time_step  # exact: a hold at fixed cell
+        factor = c.aggregation_time_step_factor or 1.0  # the ageing's Δt, a multiple
+        ageing = (ageing_time or 0.0) / (scene.time_step * factor)  # exact: a hold at fixed cell
     steps = REFERENCE_STEPS["gas_to_A"] + rate * servo * paths + probes * DYNAMIC_PROBE_STEPS
     return dt * steps + ageing
 

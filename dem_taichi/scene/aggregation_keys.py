@@ -68,6 +68,14 @@ without them runs (and writes its TOML and hash) as before.
   zero after each draw (where "resample" draws every disc on its own and heats the bonds); the
   rods' centre-of-mass rms component is ``aggregation_speed`` as for rigid rods. Rigid rods:
   "resample" itself, bit for bit; :func:`dem_taichi.protocol.rod_thermostat.rod_speed`.
+- ``aggregation_time_step_factor`` [unset = 1; (0, 4]]: the ageing (not the compression of the
+  gas before it) runs at this multiple of the scene's Δt, the scene's Δt restored after it. The
+  thermostat's check interval is kept in time: ``relax_check_steps`` / factor steps (rounded,
+  at least 1). A speed lever (issue 20): the ageing is a stochastic process whose thermostat
+  redraws the velocities at every check, so what matters is the structure it builds, not the
+  trajectory; a larger Δt resolves each collision with fewer steps (≈ 15 at dt_safety 0.15,
+  ≈ 7 at twice that) and stays well inside the leapfrog stability bound. Its accuracy is
+  measured, not assumed (``benchmarks/results/ageing_time_step.md``).
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
@@ -193,6 +201,19 @@ AGGREGATION_KEYS: dict[str, dict[str, Any]] = {
         ),
         "optional": True,
     },
+    "aggregation_time_step_factor": {
+        **_range(
+            0.0,
+            4.0,
+            lo_open=True,
+            doc=(
+                "the ageing's time step as a multiple of the scene's Δt (unset: 1); the"
+                " thermostat's check interval is kept in time"
+            ),
+            unit="1",
+        ),
+        "optional": True,
+    },
 }
 
 
@@ -213,7 +234,13 @@ def check_aggregation_keys(keys: Mapping[str, Any]) -> None:
     stray = [k for k in criterion_keys if keys[k] is not None and k not in needed]
     if mode == "none":
         stray += [
-            k for k in ("aggregation_area_fraction", "aggregation_speed") if keys[k] is not None
+            k
+            for k in (
+                "aggregation_area_fraction",
+                "aggregation_speed",
+                "aggregation_time_step_factor",
+            )
+            if keys[k] is not None
         ]
     thermostat, tau = keys["aggregation_thermostat"], keys["aggregation_thermostat_time"]
     if (thermostat == "langevin") != (tau is not None):

@@ -419,6 +419,9 @@ class ProtocolConfig(SceneSection):
     aggregation_thermostat_time: float | None = field(
         default=None, metadata=AGGREGATION_KEYS["aggregation_thermostat_time"]
     )
+    aggregation_time_step_factor: float | None = field(
+        default=None, metadata=AGGREGATION_KEYS["aggregation_time_step_factor"]
+    )
     pressure_tolerance_reduced: float | None = field(
         default=None,
         metadata={

@@ -11,6 +11,7 @@ interrupted during the ageing, and interrupted after A, and resumed.
 from __future__ import annotations
 
 import dataclasses
+import math
 import subprocess
 import sys
 from types import MappingProxyType
@@ -79,6 +80,46 @@ def test_stage_is_deterministic_bit_for_bit():
     # and the rescale did act: the gas was not left at its own speed
     velocity = first.sim.get_state()["velocity"]
     assert details_1["aging_steps"] > 0 and np.sqrt(np.mean(velocity**2)) > 0.0
+
+
+def test_a_time_step_factor_ages_as_long_in_fewer_steps_and_restores_the_time_step():
+    """``aggregation_time_step_factor = 2``: the ageing covers the same time in half the steps,
+    at twice the scene's Δt; the thermostat acts at the same times (its check interval kept in
+    time); the scene's Δt is back after the stage; the cost estimate counts the steps it takes."""
+    from dem_taichi.protocol.cost import estimate_cost
+
+    keys = dict(aggregation="time", aggregation_time=4.0, aggregation_speed=0.2)
+    plain = attractive_scene(**keys)
+    coarse = attractive_scene(**keys, aggregation_time_step_factor=2.0)
+    calls: list[int] = []
+    import dem_taichi.protocol.aggregation as stage_module
+
+    original = stage_module.resample_speed
+
+    def counting(sim, speed, seed):
+        calls.append(sim.step)
+        return original(sim, speed, seed)
+
+    stage_module.resample_speed = counting
+    try:
+        runner_1, details_1, records_1 = run_stage(plain)
+        n_plain = len(calls)
+        runner_2, details_2, records_2 = run_stage(coarse)
+        n_coarse = len(calls) - n_plain
+    finally:
+        stage_module.resample_speed = original
+    dt = runner_1.sim.time_step
+    assert runner_2.sim.time_step == dt  # restored
+    assert details_1["aging_steps"] == math.ceil(4.0 / dt - 1e-9)
+    assert details_2["aging_steps"] == math.ceil(4.0 / (2 * dt) - 1e-9)
+    assert details_2["aging_time"] == pytest.approx(details_1["aging_time"], abs=2 * dt)
+    assert details_2["time_step_factor"] == 2.0 and "time_step_factor" not in details_1
+    assert abs(n_coarse - n_plain) <= 1  # the thermostat at the same times
+    assert records_2[-1]["time"] == pytest.approx(records_1[-1]["time"], abs=2 * dt)
+    ageing = {
+        name: estimate_cost(scene, "protocol").steps for name, scene in (("1", plain), ("2", coarse))
+    }
+    assert ageing["1"] - ageing["2"] == pytest.approx(4.0 / (2 * dt), rel=1e-9)
 
 
 def test_rescale_speed_sets_the_rms_velocity_component():
@@ -503,6 +544,12 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_speed = 0.1\n'
          'aggregation_thermostat = "langevin"\naggregation_thermostat_time = 0.0\n',
          ["aggregation_thermostat_time", "out of range"]),
+        ("aggregation_time_step_factor = 2.0\n",
+         ["aggregation_time_step_factor", "used only", "aggregation = 'none'"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_time_step_factor = 5.0\n',
+         ["aggregation_time_step_factor", "out of range"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_time_step_factor = 0.0\n',
+         ["aggregation_time_step_factor", "out of range"]),
     ],
 )  # fmt: skip
 def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
