@@ -74,8 +74,10 @@ without them runs (and writes its TOML and hash) as before.
   at least 1). A speed lever (issue 20): the ageing is a stochastic process whose thermostat
   redraws the velocities at every check, so what matters is the structure it builds, not the
   trajectory; a larger Δt resolves each collision with fewer steps (≈ 15 at dt_safety 0.15,
-  ≈ 7 at twice that) and stays well inside the leapfrog stability bound. Its accuracy is
-  measured, not assumed (``benchmarks/results/ageing_time_step.md``).
+  ≈ 7 at twice that) and stays well inside the leapfrog stability bound. Measured at 2 on
+  ``study_demo`` (three seeds, ``benchmarks/results/ageing_time_step.md``): not a lever. The
+  coarse ageing built a less connected gel on every seed (Z at its end lower by 0.08–0.21)
+  with K0 at C higher, and took 0.74–0.79 of the time, not half.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
