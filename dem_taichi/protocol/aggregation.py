@@ -32,7 +32,8 @@ def aggregate(runner) -> dict:
     1. Isotropic strain-controlled compression of the gas from its area fraction φ_0 to
        ``aggregation_area_fraction`` (per-axis log strain ½ ln(φ/φ_0), at
        ``gas_strain_rate``; none when unset or equal).
-    2. Ageing at fixed cell, checked every ``relax_check_steps`` steps: for
+    2. Ageing at fixed cell (at ``aggregation_time_step_factor`` × the scene's Δt), checked
+       every ``relax_check_steps`` steps of the scene's Δt (the same time at any factor): for
        ``aggregation_time`` ("time"), or until the coordination number Z
        (``coordination_number``, contacts per rod) reaches ``aggregation_coordination``
        ("coordination"), at most ``aggregation_max_time`` — then a one-line note, not an
@@ -99,13 +100,13 @@ def aggregate(runner) -> dict:
         sim.set_parameters(time_step=base_dt * factor)
         details["time_step_factor"] = factor
     try:
-        return _age(runner, c, sim, stage, record, every, progress, measures, details, t0)
+        return _age(runner, c, sim, stage, record, progress, measures, details, t0)
     finally:
         if factor != 1.0:
             sim.set_parameters(time_step=base_dt)
 
 
-def _age(runner, c, sim, stage, record, every, progress, measures, details, t0) -> dict:
+def _age(runner, c, sim, stage, record, progress, measures, details, t0) -> dict:
     """Step 2 of :func:`aggregate`: the ageing at fixed cell, at the time step set."""
     dt = sim.time_step
     factor = c.aggregation_time_step_factor or 1.0
