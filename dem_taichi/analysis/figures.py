@@ -25,6 +25,8 @@ import xarray as xr  # noqa: E402
 from matplotlib.collections import PatchCollection  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
+from dem_taichi.physics.forcelaw import disc_positions  # noqa: E402
+
 EDGE_COLOUR = "#c0392b"
 INNER_COLOUR = "#2c3e50"
 
@@ -48,16 +50,6 @@ def _scalar(conf: xr.Dataset, name: str) -> float:
     return float(conf.attrs[name])
 
 
-def disc_centres(
-    rod_position: np.ndarray, rod_angle: np.ndarray, n_spheres: int, spacing: float
-) -> np.ndarray:
-    """Disc centres (N·n_s, 2): disc s of rod r at X_r + (s − (n_s−1)/2)·spacing·a_r."""
-    offsets = (np.arange(n_spheres) - 0.5 * (n_spheres - 1)) * spacing
-    axis = np.stack([np.cos(rod_angle), np.sin(rod_angle)], axis=-1)
-    centres = rod_position[:, None, :] + offsets[None, :, None] * axis[:, None, :]
-    return centres.reshape(-1, 2)
-
-
 def draw_rods(
     ax: plt.Axes,
     rod_position: np.ndarray,
@@ -69,7 +61,7 @@ def draw_rods(
 ) -> None:
     """Draw the periodic cell and every rod as its chain of discs, wrapped into the cell."""
     lx, ly = (float(x) for x in cell_lengths)
-    centres = disc_centres(np.asarray(rod_position), np.asarray(rod_angle), n_spheres, spacing)
+    centres = disc_positions(rod_position, rod_angle, n_spheres, spacing)
     centres = np.mod(centres, [lx, ly])
     is_edge = np.zeros(n_spheres, dtype=bool)
     is_edge[[0, -1]] = True

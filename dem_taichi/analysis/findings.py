@@ -157,7 +157,7 @@ def run_findings(folder: str | Path) -> dict:
         _rod_shape(relaxed.attrs),
     )
     row |= {"seconds": summary["total_seconds"], "workers": summary.get("workers", 1)}
-    from dem_taichi.analysis.overlaps import run_max_overlap  # scipy's tree, matplotlib's helpers
+    from dem_taichi.analysis.overlaps import run_max_overlap  # scipy's tree, loaded on use
 
     row["max_overlap"] = run_max_overlap(folder)
     aniso = folder / "anisotropy.json"

@@ -5,7 +5,7 @@ the grain: the study's-clay issue asks for a maximum overlap below 1 % of d at i
 overlap of two discs of different rods is δ = d − |x_i − x_j| (minimum image in the periodic
 cell) when positive; discs of one rod are excluded (with spacing < d they overlap by
 construction, the lens of the rod's outline). Disc centres of a rigid rod: X_r + (s − (n_s −
-1)/2)·spacing·a_r (:func:`dem_taichi.analysis.figures.disc_centres`). A bonded rod's saved
+1)/2)·spacing·a_r (:func:`dem_taichi.physics.forcelaw.disc_positions`). A bonded rod's saved
 configuration is its fitted axis, not its discs, so its overlaps are not computed from it (NaN).
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .figures import disc_centres
+from dem_taichi.physics.forcelaw import disc_positions
 
 __all__ = ["max_overlap", "configuration_max_overlap", "run_max_overlap"]
 
@@ -37,12 +37,7 @@ def max_overlap(
     ``cell_lengths`` (L_x, L_y) of the periodic rectangular cell, lengths in the DEM unit.
     """
     lengths = np.asarray(cell_lengths, dtype=float)
-    centres = disc_centres(
-        np.asarray(rod_position, dtype=float),
-        np.asarray(rod_angle, dtype=float),
-        n_spheres,
-        spacing,
-    )
+    centres = disc_positions(rod_position, rod_angle, n_spheres, spacing)
     wrapped = np.mod(centres, lengths)
     wrapped = np.where(wrapped >= lengths, wrapped - lengths, wrapped)  # mod's rounding to L
     pairs = cKDTree(wrapped, boxsize=lengths).query_pairs(diameter, output_type="ndarray")

@@ -3,11 +3,12 @@
 import numpy as np
 import xarray as xr
 
-from dem_taichi.analysis.figures import disc_centres, figure_paths, figure_states, stage_labels
+from dem_taichi.analysis.figures import figure_paths, figure_states, stage_labels
+from dem_taichi.physics.forcelaw import disc_positions
 
 
 def test_disc_centres_follow_the_rod_axis():
-    centres = disc_centres(np.array([[1.0, 2.0]]), np.array([np.pi / 2]), 5, 1.0)
+    centres = disc_positions(np.array([[1.0, 2.0]]), np.array([np.pi / 2]), 5, 1.0)
     np.testing.assert_allclose(centres[:, 0], 1.0, atol=1e-12)
     np.testing.assert_allclose(centres[:, 1], [0.0, 1.0, 2.0, 3.0, 4.0], atol=1e-12)
 
