@@ -16,8 +16,9 @@
   sqrt(path_increments / 6) × 0.5 for the secant servo (measured:
   ``servo_trade_default_acidic.md``), plus 2e5 steps per dynamic probe sweep, plus the ageing of
   an aggregation stage, exactly (its time / its Δt; ``aggregation_max_time`` for "coordination").
-  Good to a factor ~3 (chaotic packings, the servo): the `study` scene's seed-11 run took 3.12 M
-  steps, of which 0.78 M of ageing (``benchmarks/results/study_servo.md``).
+  Good to a factor ~3 (chaotic packings, the servo): the `study` scene's seed-11 run took 4.14 M
+  steps, of which 1.55 M of ageing (``benchmarks/results/study_scene_sp05_replicas.md``; 3.12 M
+  and 0.78 M before the sparser gas, ``study_servo.md``).
 - **CPU time**: steps × (a + b · discs), a = 1.2e-4 s per step and b = 3.3e-8 s per
   disc-step, fitted to two measured serial protocol runs with long-range forces on the
   development machine (default: 1.68e-4 s per step at 1500 discs; paper: 3.7e-4 s at 7600,
