@@ -1,0 +1,21 @@
+#!/bin/bash
+# Issue 19, the bonded study's clay: its stiffness fit at 300 rods (cell KB300). The `study_demo`
+# material (the SP05 gas: area fraction 0.05, aged 2000) with bonded rods (the bonds of
+# paper_bonded, relative to k_n: k_bn = k_n, k_bt = 0.2 k_n, bending 0.3 k_n d^2), the ageing
+# thermostat on the rods' rigid-body motion, and the contact stiffness raised from 7e4 to 3.0e5
+# (k_t = 0.2 k_n and k_r = 0.4 k_n kept): KB70's E_v/p at B (29 +- 8) scaled to 125. The isotropic
+# path only (A -> B -> 200), every relaxed increment saved (the bonded rods' overlaps are computed
+# from the saved states). The criteria, stated before the runs:
+# benchmarks/results/study_clay_bonded_stiffness.md. Run from a frozen clone; the three seeds
+# may run at once (ONLY = 's11$', 's2$', 's12$' in three processes). Then:
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_bonded_stiffness
+#   usage: bash benchmarks/study_clay_bonded_stiffness.sh OUT [PYTHON] [ONLY]
+set -u
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+for seed in 11 2 12; do
+  run_protocol KB300_s$seed study_demo --workers 1 --set scene.seed=$seed \
+    --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
+    --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
+    --set protocol.run_k0=false --set protocol.run_unloading=false \
+    --set protocol.save_path_states=true --set 'probing.states=A, B'
+done
