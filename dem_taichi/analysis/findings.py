@@ -133,8 +133,9 @@ def run_findings(folder: str | Path) -> dict:
     ``k0_ratio``, ``lambda_star``, ``r2``, ``p_A``, ``v_A``, ``v_B``, ``v_C``, ``fabric_A``,
     ``fabric_C``, ``k0_C``, ``modulus_exponent``, ``ev_over_p_B`` and those on the mapped stress
     window), ``seconds``, ``workers``, ``max_overlap`` (the largest contact overlap δ/d at the
-    labelled states' configurations, :func:`dem_taichi.analysis.overlaps.run_max_overlap`; NaN
-    for bonded rods or without them); ``anisotropy_C`` when the folder holds
+    labelled states, :func:`dem_taichi.analysis.overlaps.run_max_overlap`: from their
+    configurations, or their state checkpoints for bonded rods; NaN without either);
+    ``anisotropy_C`` when the folder holds
     ``anisotropy.json``. The files give the arrays (:func:`path_arrays`, :func:`probe_arrays`),
     the scene's stress scale and the rod shape; what is computed from them is
     :func:`findings_from_arrays`, which a run in memory calls too

@@ -5,8 +5,12 @@ the grain: the study's-clay issue asks for a maximum overlap below 1 % of d at i
 overlap of two discs of different rods is δ = d − |x_i − x_j| (minimum image in the periodic
 cell) when positive; discs of one rod are excluded (with spacing < d they overlap by
 construction, the lens of the rod's outline). Disc centres of a rigid rod: X_r + (s − (n_s −
-1)/2)·spacing·a_r (:func:`dem_taichi.physics.forcelaw.disc_positions`). A bonded rod's saved
-configuration is its fitted axis, not its discs, so its overlaps are not computed from it (NaN).
+1)/2)·spacing·a_r (:func:`dem_taichi.physics.forcelaw.disc_positions`).
+
+A bonded rod's saved configuration (``configuration_<label>.nc``) is its fitted axis, not its
+discs, so its overlaps are taken from the run's state checkpoints (``state_<label>.npz``, and
+``path_*.npz`` where the run saved its path states), whose bodies are the discs themselves,
+rod-major (disc s of rod r is body r·n_s + s).
 """
 
 from __future__ import annotations
@@ -18,7 +22,13 @@ from scipy.spatial import cKDTree
 
 from dem_taichi.physics.forcelaw import disc_positions
 
-__all__ = ["max_overlap", "configuration_max_overlap", "run_max_overlap"]
+__all__ = [
+    "disc_max_overlap",
+    "max_overlap",
+    "configuration_max_overlap",
+    "state_max_overlap",
+    "run_max_overlap",
+]
 
 _NAN = float("nan")
 
@@ -36,14 +46,27 @@ def max_overlap(
     ``rod_position`` (N, 2) and ``rod_angle`` (N,) the rigid rods' centroids and axis angles,
     ``cell_lengths`` (L_x, L_y) of the periodic rectangular cell, lengths in the DEM unit.
     """
-    lengths = np.asarray(cell_lengths, dtype=float)
     centres = disc_positions(rod_position, rod_angle, n_spheres, spacing)
-    wrapped = np.mod(centres, lengths)
+    rod_of_disc = np.arange(centres.shape[0]) // n_spheres
+    return disc_max_overlap(centres, rod_of_disc, cell_lengths, diameter)
+
+
+def disc_max_overlap(
+    centres: np.ndarray, rod_of_disc: np.ndarray, cell_lengths: np.ndarray, diameter: float
+) -> float:
+    """Largest δ/d over pairs of discs of different rods (0 when no pair touches).
+
+    ``centres`` (M, 2) disc centres (wrapped here into the periodic cell ``cell_lengths``),
+    ``rod_of_disc`` (M,) the rod each disc belongs to (pairs within one rod are excluded).
+    """
+    lengths = np.asarray(cell_lengths, dtype=float)
+    rods = np.asarray(rod_of_disc)
+    wrapped = np.mod(np.asarray(centres, dtype=float), lengths)
     wrapped = np.where(wrapped >= lengths, wrapped - lengths, wrapped)  # mod's rounding to L
     pairs = cKDTree(wrapped, boxsize=lengths).query_pairs(diameter, output_type="ndarray")
     if pairs.size == 0:
         return 0.0
-    pairs = pairs[pairs[:, 0] // n_spheres != pairs[:, 1] // n_spheres]
+    pairs = pairs[rods[pairs[:, 0]] != rods[pairs[:, 1]]]
     if pairs.size == 0:
         return 0.0
     gap = wrapped[pairs[:, 0]] - wrapped[pairs[:, 1]]
@@ -70,9 +93,33 @@ def configuration_max_overlap(path: str | Path) -> float:
         )
 
 
+def state_max_overlap(path: str | Path) -> float:
+    """:func:`max_overlap` of a state checkpoint (``state_<label>.npz`` or ``path_*.npz`` of a
+    protocol run, :meth:`dem_taichi.engine.simulation.Simulation.save_checkpoint`), rigid or
+    bonded rods: the bodies' centroids are ``reduced_position`` × (L_x, L_y) of ``cell``."""
+    from dem_taichi.io.checkpoint import load_checkpoint
+    from dem_taichi.scene.config import scene_from_toml
+
+    arrays, meta = load_checkpoint(path)
+    particles = scene_from_toml(meta["scene_toml"]).particles
+    lengths = np.asarray(arrays["cell"][:2], dtype=float)
+    bodies = np.asarray(arrays["reduced_position"], dtype=float) * lengths
+    n_spheres, diameter = int(particles.n_spheres), float(particles.diameter)
+    if particles.rod_model == "rigid":
+        return max_overlap(
+            bodies, arrays["angle"], lengths, n_spheres, float(particles.spacing), diameter
+        )
+    rod_of_disc = np.arange(bodies.shape[0]) // n_spheres
+    return disc_max_overlap(bodies, rod_of_disc, lengths, diameter)
+
+
 def run_max_overlap(folder: str | Path) -> float:
-    """The largest :func:`configuration_max_overlap` over a protocol run's labelled states (its
-    ``configuration_*.nc``); NaN when it has none or its rods are bonded."""
-    values = [configuration_max_overlap(p) for p in sorted(Path(folder).glob("configuration_*.nc"))]
+    """The largest overlap over a protocol run's labelled states: of its ``configuration_*.nc``
+    (rigid rods), or, where those hold bonded rods, of its ``state_*.npz`` checkpoints; NaN when
+    it has neither."""
+    folder = Path(folder)
+    values = [configuration_max_overlap(p) for p in sorted(folder.glob("configuration_*.nc"))]
     finite = [v for v in values if np.isfinite(v)]
+    if not finite:
+        finite = [state_max_overlap(p) for p in sorted(folder.glob("state_*.npz"))]
     return max(finite) if finite else _NAN

@@ -1,16 +1,25 @@
 """The largest contact overlap of a saved configuration (dem_taichi.analysis.overlaps), against
 hand-placed rods: inside the cell, across its periodic boundary, with a rod's own discs
-overlapping (excluded), and from configuration files (bonded: not computed)."""
+overlapping (excluded), from configuration files (bonded: not computed from them) and from state
+checkpoints (rigid and bonded rods)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from dem_taichi.analysis.overlaps import configuration_max_overlap, max_overlap, run_max_overlap
+from dem_taichi.analysis.overlaps import (
+    configuration_max_overlap,
+    max_overlap,
+    run_max_overlap,
+    state_max_overlap,
+)
+from dem_taichi.io.checkpoint import load_checkpoint, save_checkpoint
 from dem_taichi.io.writers import write_configuration
+from dem_taichi.scene.config import load_scene, scene_to_toml
 
 L = np.array([20.0, 10.0])
 
@@ -64,3 +73,69 @@ def test_files_give_the_same_overlap_and_bonded_rods_none(tmp_path):
     )
     assert math.isnan(run_max_overlap(bonded))
     assert math.isnan(run_max_overlap(tmp_path / "nothing"))
+
+
+def _state(path, scene_name, n_spheres, bodies, angles):
+    """A state checkpoint holding only what the overlap reads: the bodies' reduced positions,
+    their angles and the cell, with the scene (``n_spheres`` discs per rod) in its metadata."""
+    scene = load_scene(scene_name)
+    particles = dataclasses.replace(scene.particles, n_spheres=n_spheres)
+    meta = {"scene_toml": scene_to_toml(dataclasses.replace(scene, particles=particles))}
+    cell = np.zeros(8)
+    cell[:2] = L
+    arrays = {"reduced_position": np.asarray(bodies) / L, "angle": np.asarray(angles), "cell": cell}
+    return save_checkpoint(path, arrays, meta)
+
+
+def test_bonded_states_give_the_overlap_of_their_discs(tmp_path):
+    # two bonded 3-disc rods along x, 0.97 d apart in y; the first rod's discs 1 d apart (its
+    # bonds), the second one's end disc wrapped through x = 0 (a rod may straddle the boundary)
+    rod1 = [[4.0, 5.0], [5.0, 5.0], [6.0, 5.0]]
+    rod2 = [[L[0], 5.97], [1.0, 5.97], [2.0, 5.97]]  # x = 20 ≡ 0, 1, 2
+    bodies = np.array(rod1 + rod2)
+    # (no pair of different rods touches yet: the rods are 2 d apart along x)
+    assert (
+        state_max_overlap(_state(tmp_path / "state_A.npz", "smoke_bonded", 3, bodies, np.zeros(6)))
+        == 0.0
+    )
+    bodies[3:, 0] += 4.0  # rod 2 now under rod 1: x = 4, 5, 6 (the first disc from 20 → 24 ≡ 4)
+    b = _state(tmp_path / "state_B.npz", "smoke_bonded", 3, bodies, np.zeros(6))
+    assert state_max_overlap(b) == pytest.approx(0.03, abs=1e-12)
+    # the discs of one rod overlapping each other (a bent rod) do not count
+    bent = np.array([[4.0, 5.0], [4.5, 5.0], [5.0, 5.0], [9.0, 5.0], [10.0, 5.0], [11.0, 5.0]])
+    assert (
+        state_max_overlap(_state(tmp_path / "x.npz", "smoke_bonded", 3, bent, np.zeros(6))) == 0.0
+    )
+    # a run of bonded rods: its configurations give NaN, so the states decide
+    _write(tmp_path / "configuration_A.nc", "bonded", 5.9)
+    assert run_max_overlap(tmp_path) == pytest.approx(0.03, abs=1e-12)
+
+
+def test_rigid_states_give_the_overlap_of_their_configurations(tmp_path):
+    # rigid rods: the bodies are the rods, their discs placed along the angle
+    bodies, angles = np.array([[5.0, 5.0], [5.0, 5.96]]), np.zeros(2)
+    state = _state(tmp_path / "state_A.npz", "smoke", 3, bodies, angles)
+    assert state_max_overlap(state) == pytest.approx(0.04, abs=1e-12)
+    assert state_max_overlap(state) == pytest.approx(max_overlap(bodies, angles, L, 3, 1.0, 1.0))
+
+
+def test_a_simulations_state_gives_the_overlap_of_its_discs(tmp_path):
+    """The engine's own state file, bonded rods: its bodies are the simulation's discs, rod-major,
+    so an overlap placed between two rods' discs is found there."""
+    from dem_taichi.engine.simulation import Simulation
+
+    sim = Simulation(load_scene("smoke_bonded"))
+    n_spheres = sim.scene.particles.n_spheres
+    lengths = np.asarray(sim.cell_lengths, dtype=float)
+    path = sim.save_checkpoint(tmp_path / "state_A.npz")
+    arrays, meta = load_checkpoint(path)
+    bodies = arrays["reduced_position"] * arrays["cell"][:2]
+    gap = bodies - sim.disc_positions()
+    assert np.abs(gap - lengths * np.round(gap / lengths)).max() < 1e-9  # the same discs
+    # move rod 1 onto rod 0, shifted 0.993 d across rod 0's axis: the overlap is 0.007 d
+    axis = bodies[n_spheres - 1] - bodies[0]
+    normal = np.array([-axis[1], axis[0]]) / np.linalg.norm(axis)
+    bodies[n_spheres : 2 * n_spheres] = bodies[:n_spheres] + 0.993 * normal
+    arrays["reduced_position"] = bodies / arrays["cell"][:2]
+    moved = save_checkpoint(tmp_path / "state_B.npz", arrays, meta)
+    assert state_max_overlap(moved) == pytest.approx(0.007, abs=1e-9)
