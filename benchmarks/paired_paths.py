@@ -5,6 +5,8 @@ Usage::
     python benchmarks/paired_paths.py --scene paper --seed 3 \\
         --variant base= --variant safety1=protocol.inertial_number_safety=1.0 \\
         [--set section.key=value ...] [--branches isotropic,k0] [--workers 2] --out FILE.json
+    python benchmarks/paired_paths.py --from-run RUN_DIR --variant k0=protocol.run_k0=true \
+        --branches k0 --out FILE.json
 
 The gas of the scene (with ``--set`` and the seed) is compressed to state A once, in this
 process, and probed there; then, for each variant (``NAME=key=value;key=value``, ``NAME=`` for
@@ -19,6 +21,13 @@ each labelled state, its measures and moduli (v, p, q, fabric, E_v, E_h, E_h/E_v
 ``<key>@<label>``), assembled by :mod:`dem_taichi.analysis.findings` from the same arrays as a
 run folder's (:func:`~dem_taichi.analysis.findings.findings_from_arrays`). A finding a variant
 lacks (no A→B, no C) is null.
+
+With ``--from-run RUN_DIR`` the gas is not compressed again: state A is a finished or interrupted
+protocol run's (its ``resume/A.npz``, the run log, records and probes at A, and its
+``state_A.npz``, the engine at A), and the base scene is that run's (``--scene``, ``--seed`` and
+``--set`` are refused beside it). So paths a run did not take (its K0 path, a radial path) are
+added from its A without the preparation again; a variant with no change (``base=``) gives the
+run's own branches bit for bit (tested on the smoke protocol).
 
 The paired differences over seeds are tabulated by ``benchmarks/paired_paths_table.py``.
 """
@@ -87,16 +96,38 @@ def _findings(result, particles) -> dict:
     return out
 
 
+def _stage_a_of_run(folder: Path):
+    """A protocol run's scene, its log at A (stages, path states and probes up to A), the
+    checkpoint of its engine at A and the seconds it took to reach A (``--from-run``)."""
+    from dem_taichi.io.checkpoint import checkpoint_meta
+    from dem_taichi.protocol.resume import RunIdentity, load_stage_a
+    from dem_taichi.scene.config import scene_from_toml
+
+    record = json.loads((folder / "run.json").read_text())
+    identity = RunIdentity(folder, record["run_id"], record["scene_sha256"])
+    stage = load_stage_a(identity)
+    checkpoint = folder / "state_A.npz"
+    if stage is None or not checkpoint.exists():
+        raise SystemExit(f"{folder}: no saved state A (resume/A.npz and state_A.npz)")
+    scene = scene_from_toml(checkpoint_meta(checkpoint)["scene_toml"])
+    return scene, stage.log, checkpoint, stage.seconds
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="paper")
-    parser.add_argument("--seed", type=int, required=True)
     parser.add_argument("--set", action="append", default=[], dest="overrides")
     parser.add_argument("--variant", action="append", required=True)
     parser.add_argument("--branches", default="", help="comma-separated kinds to keep")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--from-run", type=Path, default=None, help="take A from this run")
+    parser.add_argument("--seed", type=int, default=None)
     args = parser.parse_args(argv)
+    if args.from_run is None and args.seed is None:
+        parser.error("--seed is required (or --from-run)")
+    if args.from_run is not None and (args.seed is not None or args.overrides):
+        parser.error("--from-run takes the run's scene: no --seed or --set beside it")
 
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.engine.work_profile import merge_work
@@ -116,20 +147,25 @@ def main(argv: list[str] | None = None) -> int:
             if key.split(".", 1)[0] not in VARIANT_SECTIONS:
                 raise SystemExit(f"variant {name}: {key}: only {VARIANT_SECTIONS} may change")
         variants[name] = keys
-    overrides = [*args.overrides, f"scene.seed={args.seed}"]
-    base = scene_with_overrides(load_scene(args.scene), overrides)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    checkpoint = args.out.with_suffix(".state_A.npz")
-
-    start = time.perf_counter()
-    sim = Simulation(base)
-    log = RunLog()
-    config, probing = protocol_settings(base), probing_settings(base)
-    recorder = ProbeRecorder(probing, config, log)
-    runner = ProtocolRunner(sim, config, probing, None, None, recorder, False, log=log)
-    runner.compress_to_transition()  # ends with the engine at A (as the protocol's workers use)
-    seconds_a = time.perf_counter() - start
-    sim.save_checkpoint(checkpoint)
+    if args.from_run is not None:
+        base, log, checkpoint, seconds_a = _stage_a_of_run(args.from_run)
+        args.seed, args.scene = base.scene.seed, str(args.from_run)
+        n_rods = base.particles.n_rods
+    else:
+        overrides = [*args.overrides, f"scene.seed={args.seed}"]
+        base = scene_with_overrides(load_scene(args.scene), overrides)
+        checkpoint = args.out.with_suffix(".state_A.npz")
+        start = time.perf_counter()
+        sim = Simulation(base)
+        log = RunLog()
+        config, probing = protocol_settings(base), probing_settings(base)
+        recorder = ProbeRecorder(probing, config, log)
+        runner = ProtocolRunner(sim, config, probing, None, None, recorder, False, log=log)
+        runner.compress_to_transition()  # ends with the engine at A (as the protocol's workers)
+        seconds_a = time.perf_counter() - start
+        sim.save_checkpoint(checkpoint)
+        n_rods = sim.n_rods
     state_a = log.states["A"]
     print(
         f"[seed {args.seed}] A: p={state_a.measures['mean_stress']:.4g} "
@@ -166,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
             merged.merge(branch_log)
             branch_seconds[label] = seconds
         result = ProtocolResult(
-            out_dir=args.out.parent, scene_name=args.scene, pattern="", n_rods=sim.n_rods,
+            out_dir=args.out.parent, scene_name=args.scene, pattern="", n_rods=n_rods,
             arch="cpu", precision="f64", log=merged,
             stress_scale_kpa=protocol_settings(scene).stress_scale_kpa,
         )  # fmt: skip

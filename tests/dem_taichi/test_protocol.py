@@ -808,3 +808,36 @@ def test_the_isotropic_path_past_b_leaves_a_to_b_bitwise_and_ends_at_its_stress(
     assert p == sorted(p) and p[0] > 20.0
     assert p[-1] == pytest.approx(50.0, rel=TOL)
     assert list(longer.states) == ["A", "B"]
+
+
+# a benchmark tool's check (~20-35 s: a spawned branch process), run by `make test-slow`
+@pytest.mark.slow
+def test_paired_paths_from_a_run_gives_its_branches_bit_for_bit(run, tmp_path):
+    """``benchmarks/paired_paths.py --from-run``: the K0 branch (A→C→B′) run again from the
+    smoke run's saved A, with the run's own scene (variant ``base=``), reaches C and B′ bit for
+    bit; the run's preparation is not repeated (its seconds to A are the run's)."""
+    import importlib.util
+    import json
+    import sys
+
+    from tests.dem_taichi.test_probe_relaxation_bench import SCRIPT
+
+    script = SCRIPT.with_name("paired_paths.py")
+    spec = importlib.util.spec_from_file_location("paired_paths", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["paired_paths"] = module  # the branch processes import it by this name
+    spec.loader.exec_module(module)
+    out = tmp_path / "k0.json"
+    argv = ["--from-run", str(run.out_dir), "--variant", "base=", "--branches", "k0"]
+    assert module.main([*argv, "--workers", "1", "--out", str(out)]) == 0
+    report = json.loads(out.read_text())
+    findings = report["variants"]["base"]["findings"]
+    for label in ("C", "B'"):
+        m = run.states[label].measures
+        for key in ("mean_stress", "specific_volume", "fabric_deviator"):
+            assert findings[f"{key}@{label}"] == m[key], (label, key)
+    assert report["steps_to_A"] == run.stages["isotropic_to_A"].steps
+    assert "B" not in {k.split("@")[1] for k in findings if "@" in k}  # A→B not run
+    with pytest.raises(SystemExit):
+        module.main([*argv, "--seed", "3", "--out", str(out)])
