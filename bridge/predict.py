@@ -282,8 +282,50 @@ def predict_probes(
         for k in ("mean_stress", "fabric"):  # these are the DEM's own inputs here
             ds[k].attrs["role"] = "input"
             ds = ds.drop_vars(f"dem_{k}")
+        for name, (ratio, long_name) in anisotropy_parts(dem, params, options).items():
+            ds[name] = (
+                "point",
+                ratio,
+                {"units": "1", "long_name": long_name, "role": "diagnostic"},
+            )
         out[path] = ds
     return out
+
+
+def anisotropy_parts(
+    dem: xr.Dataset, params: Parameters, options: ModelOptions = DEFAULT_OPTIONS
+) -> dict[str, tuple[np.ndarray, str]]:
+    """The model's E_oed,h/E_oed,v at the DEM's probe states split into its two sources: at the
+    measured stress with the fabric set to 0 (``stiffness_ratio_stress_only``: the anisotropy the
+    pressure-dependent elasticity draws from the stress alone) and at the measured fabric under
+    the isotropic stress p (``stiffness_ratio_fabric_only``). NaN where the elastic law cannot be
+    inverted at such a state. A diagnostic of the out-of-sample K0 stiffness ratio: where the
+    model misses it, which part does."""
+    sa, sr = dem["axial_stress"].values, dem["radial_stress"].values
+    v, beta = dem["specific_volume"].values, dem["fabric"].values
+    p = (sa + 2.0 * sr) / 3.0
+    cases = {
+        "stiffness_ratio_stress_only": (
+            sa,
+            sr,
+            0.0,
+            "TIV E_oed,h/E_oed,v at the DEM stress, fabric 0",
+        ),
+        "stiffness_ratio_fabric_only": (
+            p,
+            p,
+            beta,
+            "TIV E_oed,h/E_oed,v at the DEM fabric, stress p",
+        ),
+    }
+    parts = {}
+    for name, (axial, radial, fabric, long_name) in cases.items():
+        try:
+            ratio = moduli_at_states(axial, radial, v, fabric, params, options)["stiffness_ratio"]
+        except TivModelError:
+            ratio = np.full(np.shape(sa), np.nan)
+        parts[name] = (np.asarray(ratio, dtype=float), long_name)
+    return parts
 
 
 def summary(predictions: Mapping[str, xr.Dataset]) -> list[dict[str, object]]:

@@ -33,17 +33,23 @@ def _k0_anisotropy_lines(runs, model_probes, probes) -> list[str]:
     lines = []
     if "k0" in model_probes and "k0" in probes:
         m, d = model_probes["k0"], probes["k0"]
-        lines.append("| p (kPa) | β (DEM) | E_h/E_v DEM | E_h/E_v TIV at DEM state |")
-        lines.append("|---|---|---|---|")
+        parts = ("stiffness_ratio_stress_only", "stiffness_ratio_fabric_only")
+        split = all(name in m for name in parts)
+        header = "| p (kPa) | β (DEM) | E_h/E_v DEM | E_h/E_v TIV at DEM state |"
+        lines.append(header + (" TIV, β = 0 | TIV, q = 0 |" if split else ""))
+        lines.append("|---|---|---|---|" + ("---|---|" if split else ""))
         ratio = d["e_oed_h"].values / d["e_oed_v"].values
-        for p, b, r_d, r_m in zip(
-            d["mean_stress"].values,
-            d["fabric"].values,
-            ratio,
-            m["stiffness_ratio"].values,
-            strict=True,
-        ):
-            lines.append(f"| {_fmt(p)} | {_fmt(b, 3)} | {_fmt(r_d)} | {_fmt(r_m)} |")
+        columns = [d["mean_stress"].values, d["fabric"].values, ratio, m["stiffness_ratio"].values]
+        columns += [m[name].values for name in parts] if split else []
+        for p, b, *ratios in zip(*columns, strict=True):
+            lines.append(f"| {_fmt(p)} | {_fmt(b, 3)} | " + " | ".join(map(_fmt, ratios)) + " |")
+        if split:
+            lines.append("")
+            lines.append(
+                "The model's ratio split by source: *β = 0*, at the DEM's stress with the fabric "
+                "set to 0 (what its pressure-dependent elasticity draws from the stress alone); "
+                "*q = 0*, at the DEM's fabric under the isotropic stress p."
+            )
     if "k0" in runs:
         r = runs["k0"]
         k0_ratio = r["radial_stress"].values[-1] / r["axial_stress"].values[-1]

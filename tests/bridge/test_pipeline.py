@@ -64,6 +64,27 @@ def test_predictions_fail_clearly(synthetic):
         predict_probes(TRUTH.replace(omega=500.0), probes)
 
 
+def test_the_probes_split_the_models_anisotropy_by_its_source(synthetic):
+    """predict_probes' diagnostic: the model's E_h/E_v with the fabric set to 0 (from the stress
+    alone) and under the isotropic stress p (from the fabric alone). At an isotropic state both
+    sources are off: the stress-only ratio is 1, the fabric-only ratio is the model's own; along
+    K0 (σ_a > σ_r) the stress alone makes the axial direction stiffer (below 1), and at A
+    (β = 0) the fabric alone gives 1."""
+    probes = all_probe_series(synthetic.probes, CONVENTION)
+    predicted = predict_probes(TRUTH, probes)
+    iso, k0 = predicted["isotropic"], predicted["k0"]
+    np.testing.assert_allclose(iso["stiffness_ratio_stress_only"].values, 1.0, rtol=1e-9)
+    np.testing.assert_allclose(
+        iso["stiffness_ratio_fabric_only"].values, iso["stiffness_ratio"].values, rtol=1e-9
+    )
+    q = probes["k0"]["axial_stress"].values - probes["k0"]["radial_stress"].values
+    loaded = q > 1e-6 * probes["k0"]["axial_stress"].values
+    assert loaded.sum() >= 3 and not loaded[0]
+    assert np.all(k0["stiffness_ratio_stress_only"].values[loaded] < 1.0)
+    assert k0["stiffness_ratio_fabric_only"].values[0] == pytest.approx(1.0, rel=1e-9)
+    assert k0["stiffness_ratio_stress_only"].attrs["role"] == "diagnostic"
+
+
 def _write_inputs(synthetic, folder, with_scale=True):
     from dem_taichi.io import write_dataset
 
@@ -103,6 +124,7 @@ def test_pipeline_writes_calibration_predictions_figures_and_report(synthetic, t
     report = (tmp_path / "out" / "report.md").read_text()
     assert "| k |" in report and "± " in report and "out_of_sample" in report
     assert "Back-prediction of the stiffness anisotropy along K0" in report
+    assert "| TIV, β = 0 | TIV, q = 0 |" in report  # the model's ratio split by its source
     saved = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert saved["parameters"]["omega"] == pytest.approx(TRUTH.omega, rel=1e-8)
     # one result object: typed fields, the old dict through to_dict() and mapping access
