@@ -19,8 +19,9 @@ stage, and the findings: those a run folder gives (λ*, the moduli exponent and 
 A→B; K0 = σ_xx/σ_yy at C; fabric and E_h/E_v along the paths; the mapped window...) and, at
 each labelled state, its measures and moduli (v, p, q, fabric, E_v, E_h, E_h/E_v as
 ``<key>@<label>``), assembled by :mod:`dem_taichi.analysis.findings` from the same arrays as a
-run folder's (:func:`~dem_taichi.analysis.findings.findings_from_arrays`). A finding a variant
-lacks (no A→B, no C) is null.
+run folder's (:func:`~dem_taichi.analysis.findings.findings_from_arrays`), and the largest
+contact overlap δ/d of each labelled state's discs (``max_overlap@<label>``, rigid or bonded).
+A finding a variant lacks (no A→B, no C) is null.
 
 With ``--from-run RUN_DIR`` the gas is not compressed again: state A is a finished or interrupted
 protocol run's (its ``resume/A.npz``, the run log, records and probes at A, and its
@@ -42,6 +43,8 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
 from jsonable import jsonable  # noqa: E402
@@ -93,6 +96,14 @@ def _findings(result, particles) -> dict:
     out = findings_from_arrays(path, probes, result.n_rods, result.stress_scale_kpa, shape)
     for label, entry in states_from_arrays(path.states, probes).items():
         out.update({f"{key}@{label}": value for key, value in entry.items()})
+    from dem_taichi.analysis.overlaps import disc_max_overlap
+
+    for label, snapshot in result.log.snapshots.items():  # the discs at each labelled state
+        discs = snapshot["disc_positions"]
+        rods = np.arange(discs.shape[0]) // particles.n_spheres
+        out[f"max_overlap@{label}"] = disc_max_overlap(
+            discs, rods, snapshot["cell_lengths"], particles.diameter
+        )
     return out
 
 

@@ -838,6 +838,11 @@ def test_paired_paths_from_a_run_gives_its_branches_bit_for_bit(run, tmp_path):
         for key in ("mean_stress", "specific_volume", "fabric_deviator"):
             assert findings[f"{key}@{label}"] == m[key], (label, key)
     assert report["steps_to_A"] == run.stages["isotropic_to_A"].steps
+    from dem_taichi.analysis.overlaps import configuration_max_overlap
+
+    for label, name in (("C", "C"), ("B'", "B_prime")):  # the discs of the state, as its file's
+        saved = configuration_max_overlap(run.out_dir / f"configuration_{name}.nc")
+        assert findings[f"max_overlap@{label}"] == pytest.approx(saved, abs=1e-9)
     assert "B" not in {k.split("@")[1] for k in findings if "@" in k}  # A→B not run
     with pytest.raises(SystemExit):
         module.main([*argv, "--seed", "3", "--out", str(out)])
