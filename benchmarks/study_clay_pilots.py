@@ -12,7 +12,10 @@ cell: how many runs converged (a run that stops on a servo failure writes no
 stresses), λ* and the moduli exponent on the mapped 1–200 kPa window (the stress scale measured
 where E_v/p = 125 on A→B), E_v/p at B, K0 at C, E_h/E_v at B and at C and their paired difference
 C − B, E_h/E_v at B′ and B′ − B (B's probe against B′'s), the fabric deviator at C, N under both
-specific-volume definitions. Writes ``<out>.md`` and ``<out>.csv`` (per
+specific-volume definitions, the largest contact overlap at the labelled states and, where the
+run saved its path states, over every saved state. A run's K0 path added later from its A
+(``<run>_k0.json`` beside the folder, ``benchmarks/paired_paths.py --from-run``) fills the C and
+B′ columns. Writes ``<out>.md`` and ``<out>.csv`` (per
 cell) and ``<out>_runs.csv`` (per run).
 """
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import re
 from pathlib import Path
@@ -47,6 +51,7 @@ COLUMNS = (
     ("N_disc", "N (disc area)", 3),
     ("N_rectangle", "N (rod rectangle)", 3),
     ("max_overlap", "max overlap δ/d", 2),
+    ("max_overlap_all_states", "max overlap δ/d, every saved state", 2),
     ("minutes", "wall (min)", 2),
 )
 
@@ -62,7 +67,45 @@ def run_row(folder: Path) -> dict:
         return row
     row.update(headline_findings(folder))
     row["converged"] = True
+    _add_paths_from_a(folder, row)
+    row["max_overlap_all_states"] = _max_overlap_all_states(folder)
     return row
+
+
+def _number(value) -> float:
+    return math.nan if value is None else float(value)
+
+
+def _add_paths_from_a(folder: Path, row: dict) -> None:
+    """The K0 path and unloading added later from the run's A (``<run>_k0.json`` beside the run
+    folder, written by ``benchmarks/paired_paths.py --from-run`` with one variant): K0 at C, the
+    fabric at C, E_h/E_v at C and B′ and their paired changes against the run's own B, the
+    largest overlap at C and B′ (with the run's), and the branch's wall time added."""
+    added = folder.with_name(folder.name + "_k0.json")
+    if not added.exists():
+        return
+    (variant,) = json.loads(added.read_text())["variants"].values()
+    found = variant["findings"]
+    row["k0_C"], row["fabric_C"] = _number(found["k0_C"]), _number(found["fabric_C"])
+    row["ratio_C"], row["ratio_Bp"] = _number(found["e_ratio@C"]), _number(found["e_ratio@B'"])
+    row["ratio_C_minus_B"] = row["ratio_C"] - row["ratio_B"]
+    row["ratio_Bp_minus_B"] = row["ratio_Bp"] - row["ratio_B"]
+    overlaps = [row.get("max_overlap", math.nan)]
+    overlaps += [_number(found.get(f"max_overlap@{label}")) for label in ("C", "B'")]
+    finite = [v for v in overlaps if math.isfinite(v)]
+    row["max_overlap"] = max(finite) if finite else math.nan
+    row["minutes"] += variant["branches_wall_seconds"] / 60.0
+
+
+def _max_overlap_all_states(folder: Path) -> float:
+    """The largest overlap over every state checkpoint of the run (``state_*.npz`` and, where
+    ``save_path_states`` wrote them, ``path_*.npz``); NaN without path states."""
+    paths = sorted(folder.glob("path_*.npz"))
+    if not paths:
+        return math.nan
+    from dem_taichi.analysis.overlaps import state_max_overlap
+
+    return max(state_max_overlap(p) for p in [*sorted(folder.glob("state_*.npz")), *paths])
 
 
 def summarise(rows: list[dict]) -> tuple[str, list[dict]]:
