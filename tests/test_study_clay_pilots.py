@@ -3,25 +3,17 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "study_clay_pilots.py"
+from tests.scripts import load_script
 
 
 @pytest.fixture(scope="module")
 def pilots():
-    spec = importlib.util.spec_from_file_location("study_clay_pilots", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["study_clay_pilots"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/study_clay_pilots.py")
 
 
 def test_the_added_k0_path_fills_c_and_b_prime(pilots, tmp_path):

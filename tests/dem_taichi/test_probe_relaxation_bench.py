@@ -9,25 +9,19 @@ with a ``run.json`` naming its scene's hash, as a protocol run with ``save_state
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "probe_relaxation.py"
+from tests.scripts import load_script
+
 THRESHOLDS = (1e-5, 1e-6, 1e-7)
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("probe_relaxation", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["probe_relaxation"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/probe_relaxation.py")
 
 
 @pytest.fixture(scope="module")

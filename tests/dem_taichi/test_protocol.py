@@ -11,7 +11,6 @@ import dataclasses
 import json
 import math
 import os
-import sys
 from pathlib import Path
 from types import MappingProxyType
 
@@ -363,15 +362,9 @@ def test_secant_servo_holds_the_targets_in_fewer_steps(run, secant_run):
 
 
 def _benchmark_module(name: str):
-    import importlib.util
-    from pathlib import Path
+    from tests.scripts import load_script
 
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_script(f"benchmarks/{name}.py")
 
 
 def test_benchmark_summaries_read_a_run(run, tmp_path):
@@ -816,18 +809,9 @@ def test_paired_paths_from_a_run_gives_its_branches_bit_for_bit(run, tmp_path):
     """``benchmarks/paired_paths.py --from-run``: the K0 branch (A→C→B′) run again from the
     smoke run's saved A, with the run's own scene (variant ``base=``), reaches C and B′ bit for
     bit; the run's preparation is not repeated (its seconds to A are the run's)."""
-    import importlib.util
     import json
-    import sys
 
-    from tests.dem_taichi.test_probe_relaxation_bench import SCRIPT
-
-    script = SCRIPT.with_name("paired_paths.py")
-    spec = importlib.util.spec_from_file_location("paired_paths", script)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["paired_paths"] = module  # the branch processes import it by this name
-    spec.loader.exec_module(module)
+    module = _benchmark_module("paired_paths")  # the branch processes import it by this name
     out = tmp_path / "k0.json"
     argv = ["--from-run", str(run.out_dir), "--variant", "base=", "--branches", "k0"]
     assert module.main([*argv, "--workers", "1", "--out", str(out)]) == 0
