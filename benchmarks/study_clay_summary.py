@@ -40,6 +40,7 @@ EXPERIMENTS = (
     ("study_clay_looser_size.csv", "sweeps/study_sp05.toml", "study_clay_looser.md"),
     ("study_clay_looser_d12.csv", "study_clay_looser.sh", "study_clay_looser.md"),
     ("study_scene_sp05_replicas.csv", "sweeps/study_sp05_radial.toml", "study_clay_looser.md"),
+    ("study_clay_sparser_cells.csv", "study_clay_sparser.sh", "study_clay_sparser.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -65,7 +66,9 @@ gas (area fraction 0.05, aged 2000; `study_clay_looser`, cell SP05) is the first
 (SP05L, without radial paths: 0.182 ± 0.028, E_v/p at B 133 ± 24, C − B +0.36 ± 0.35), and with
 the radial paths (SP05R, A to B′ bit for bit SP05L's, all converged): since 2026-12-03 the
 `study` scene's preparation. Longer
-rods (12 discs, D12) loosen the gel at A but give λ* 0.173 ± 0.074, short of 0.18. Not run:
+rods (12 discs, D12) loosen the gel at A but give λ* 0.173 ± 0.074, short of 0.18, and a still
+sparser gas (0.025, aged 4000; `study_clay_sparser`, SP025) gives 0.190 ± 0.041 at 300 rods, no
+more than SP05 on the same seeds (paired +0.005 ± 0.061). Not run:
 stage 2 with bonded rods (12,160 bodies, an estimated
 1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
