@@ -41,6 +41,11 @@ EXPERIMENTS = (
     ("study_clay_looser_d12.csv", "study_clay_looser.sh", "study_clay_looser.md"),
     ("study_scene_sp05_replicas.csv", "sweeps/study_sp05_radial.toml", "study_clay_looser.md"),
     ("study_clay_sparser_cells.csv", "study_clay_sparser.sh", "study_clay_sparser.md"),
+    (
+        "study_clay_bonded_stiffness_cells.csv",
+        "study_clay_bonded_stiffness.sh",
+        "study_clay_bonded_stiffness.md",
+    ),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -68,9 +73,11 @@ the radial paths (SP05R, A to B′ bit for bit SP05L's, all converged): since 20
 `study` scene's preparation. Longer
 rods (12 discs, D12) loosen the gel at A but give λ* 0.173 ± 0.074, short of 0.18, and a still
 sparser gas (0.025, aged 4000; `study_clay_sparser`, SP025) gives 0.190 ± 0.041 at 300 rods, no
-more than SP05 on the same seeds (paired +0.005 ± 0.061). Not run:
-stage 2 with bonded rods (12,160 bodies, an estimated
-1.5 h or more per seed on 2 cores, and a stiffness fit of its own first, k_n ≈ 3e5). The TIV
+more than SP05 on the same seeds (paired +0.005 ± 0.061). Bonded rods with their own stiffness
+fit (KB300: k_n 3e5, `study_clay_bonded_stiffness`, the K0 paths added from each run's A) reach
+the study's stiffness level (E_v/p at B 105 ± 22), overlaps of about 1 % of d (rigid: 4–6 %) and
+the finding on every seed at 300 rods (C − B +0.42 ± 0.28, K0 0.57 ± 0.06), with λ* 0.165 ±
+0.010. Not run: stage 2 with bonded rods (12,160 bodies, about 2–3 h per seed on 2 cores). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
