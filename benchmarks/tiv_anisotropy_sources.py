@@ -15,7 +15,8 @@ stress p (from the fabric alone), beside the DEM's measured ratio. The stress of
 rebuilt from its p and its path: isotropic at A, B and B′; σ_r/σ_a = ``--k0-c`` at C (the
 replicas' mean K0); the radial ends from their DEM stress ratio η = 2(σ_yy − σ_xx)/(σ_xx +
 σ_yy), given as ``--radial-eta`` in the order R1, R2, R3. A second table sweeps the stress
-ratio at β = 0 and the fabric at q = 0, at p = 100 kPa and the v of B.
+ratio at β = 0 and the fabric at q = 0, at p = 100 kPa and the v of B. A state where the model's
+energy is not convex or its elastic law cannot be inverted shows as nan.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 import xarray as xr
 
 from bridge.predict import anisotropy_parts
+from tiv_model.errors import TivModelError
 from tiv_model.params import ModelOptions, Parameters
 
 
@@ -68,7 +70,11 @@ def _ratios(sa, sr, v, beta, params, options) -> dict[str, np.ndarray]:
     )
     from bridge.moduli import moduli_at_states
 
-    out = {"full": moduli_at_states(sa, sr, v, beta, params, options)["stiffness_ratio"]}
+    try:
+        full = moduli_at_states(sa, sr, v, beta, params, options)["stiffness_ratio"]
+    except TivModelError:  # outside the energy's convexity (ω β_s² ≥ 3/2) or not invertible
+        full = np.full(len(sa), np.nan)
+    out = {"full": full}
     parts = anisotropy_parts(dem, params, options)
     out["stress"] = parts["stiffness_ratio_stress_only"][0]
     out["fabric"] = parts["stiffness_ratio_fabric_only"][0]
