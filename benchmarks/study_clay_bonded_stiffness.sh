@@ -6,9 +6,11 @@
 # (k_t = 0.2 k_n and k_r = 0.4 k_n kept): KB70's E_v/p at B (29 +- 8) scaled to 125. The isotropic
 # path only (A -> B -> 200), every relaxed increment saved (the bonded rods' overlaps are computed
 # from the saved states). The criteria, stated before the runs:
-# benchmarks/results/study_clay_bonded_stiffness.md. Run from a frozen clone; the three seeds
-# may run at once (ONLY = 's11$', 's2$', 's12$' in three processes). Then:
-#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_bonded_stiffness
+# benchmarks/results/study_clay_bonded_stiffness.md. Then the K0 path and unloading of each
+# finished run from its saved A (benchmarks/paired_paths.py --from-run, OUT/KB300_s<seed>_k0.json;
+# the page's K0 runs were started by a watcher with the same command). Run from a frozen clone;
+# the three seeds may run at once (ONLY = 's11$', 's2$', 's12$' in three processes). Then:
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_bonded_stiffness_cells
 #   usage: bash benchmarks/study_clay_bonded_stiffness.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
@@ -18,4 +20,14 @@ for seed in 11 2 12; do
     --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
     --set protocol.run_k0=false --set protocol.run_unloading=false \
     --set protocol.save_path_states=true --set 'probing.states=A, B'
+done
+for seed in 11 2 12; do
+  name=KB300_s$seed
+  [[ -n $ONLY && ! $name =~ $ONLY ]] && continue
+  [ -f "$OUT/$name/summary.json" ] && [ ! -f "$OUT/${name}_k0.json" ] || continue
+  start=$(date +%s)
+  "$PY" "$(dirname "${BASH_SOURCE[0]}")/paired_paths.py" --from-run "$OUT/$name" \
+    --variant "k0=protocol.run_k0=true;protocol.run_unloading=true;probing.states=A, B, C, B'" \
+    --branches k0 --workers 1 --out "$OUT/${name}_k0.json" > "$OUT/${name}_k0.log" 2>&1
+  echo "${name}_k0 rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
 done
