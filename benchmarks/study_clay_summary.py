@@ -77,7 +77,9 @@ more than SP05 on the same seeds (paired +0.005 ± 0.061). Bonded rods with thei
 fit (KB300: k_n 3e5, `study_clay_bonded_stiffness`, the K0 paths added from each run's A) reach
 the study's stiffness level (E_v/p at B 105 ± 22), overlaps of about 1 % of d (rigid: 4–6 %) and
 the finding on every seed at 300 rods (C − B +0.42 ± 0.28, K0 0.57 ± 0.06), with λ* 0.165 ±
-0.010. Not run: stage 2 with bonded rods (12,160 bodies, about 2–3 h per seed on 2 cores). The TIV
+0.010; doubling their attraction (KB300F600) lowers λ* on the mapped window (0.141 ± 0.027) and
+the stiffness (E_v/p 83 ± 35). Not run: stage 2 with bonded rods (12,160 bodies, about 2–3 h per
+seed on 2 cores). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
