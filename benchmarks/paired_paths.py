@@ -5,8 +5,9 @@ Usage::
     python benchmarks/paired_paths.py --scene paper --seed 3 \\
         --variant base= --variant safety1=protocol.inertial_number_safety=1.0 \\
         [--set section.key=value ...] [--branches isotropic,k0] [--workers 2] --out FILE.json
-    python benchmarks/paired_paths.py --from-run RUN_DIR --variant k0=protocol.run_k0=true \
-        --branches k0 --out FILE.json
+    python benchmarks/paired_paths.py --from-run RUN_DIR \\
+        --variant "k0=protocol.run_k0=true;protocol.run_unloading=true" --branches k0 \\
+        --out FILE.json
 
 The gas of the scene (with ``--set`` and the seed) is compressed to state A once, in this
 process, and probed there; then, for each variant (``NAME=key=value;key=value``, ``NAME=`` for
