@@ -45,8 +45,6 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
 from jsonable import jsonable  # noqa: E402
 
@@ -100,11 +98,10 @@ def _findings(result, particles) -> dict:
     from dem_taichi.analysis.overlaps import disc_max_overlap
 
     for label, snapshot in result.log.snapshots.items():  # the discs at each labelled state
-        discs = snapshot["disc_positions"]
-        rods = np.arange(discs.shape[0]) // particles.n_spheres
         out[f"max_overlap@{label}"] = disc_max_overlap(
-            discs, rods, snapshot["cell_lengths"], particles.diameter
-        )
+            snapshot["disc_positions"], particles.n_spheres, snapshot["cell_lengths"],
+            particles.diameter,
+        )  # fmt: skip
     return out
 
 

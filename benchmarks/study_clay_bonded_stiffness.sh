@@ -14,13 +14,18 @@
 #   usage: bash benchmarks/study_clay_bonded_stiffness.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-for seed in 11 2 12; do
-  run_protocol KB300_s$seed study_demo --workers 1 --set scene.seed=$seed \
-    --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
-    --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
-    --set protocol.run_k0=false --set protocol.run_unloading=false \
-    --set protocol.save_path_states=true --set 'probing.states=A, B'
-done
+# bonded_cell CELL [--set ...]: the cell's isotropic runs, seeds 11, 2, 12, with extra keys
+bonded_cell() {
+  local cell=$1 seed; shift
+  for seed in 11 2 12; do
+    run_protocol ${cell}_s$seed study_demo --workers 1 --set scene.seed=$seed \
+      --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
+      --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
+      --set protocol.run_k0=false --set protocol.run_unloading=false \
+      --set protocol.save_path_states=true --set 'probing.states=A, B' "$@"
+  done
+}
+bonded_cell KB300
 for seed in 11 2 12; do
   name=KB300_s$seed
   [[ -n $ONLY && ! $name =~ $ONLY ]] && continue
@@ -34,12 +39,5 @@ done
 # KB300F600 (stated after KB300's results, before its own runs; the page's last section): the same
 # cell with the attraction doubled at the same range (F_max 600, k_a 1200: g_max 0.5 d), so that
 # F_max/(k_n d) goes halfway back to the rigid scene's 4.3e-3. The isotropic path only.
-for seed in 11 2 12; do
-  run_protocol KB300F600_s$seed study_demo --workers 1 --set scene.seed=$seed \
-    --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
-    --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
-    --set long_range.f_max_edge=600 --set long_range.f_max_inner=600 \
-    --set long_range.k_a_edge=1200 --set long_range.k_a_inner=1200 \
-    --set protocol.run_k0=false --set protocol.run_unloading=false \
-    --set protocol.save_path_states=true --set 'probing.states=A, B'
-done
+bonded_cell KB300F600 --set long_range.f_max_edge=600 --set long_range.f_max_inner=600 \
+  --set long_range.k_a_edge=1200 --set long_range.k_a_inner=1200

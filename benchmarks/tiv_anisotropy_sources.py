@@ -29,8 +29,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from bridge.predict import anisotropy_parts
-from tiv_model.errors import TivModelError
+from bridge.predict import anisotropy_parts, stiffness_ratio_or_nan
 from tiv_model.params import ModelOptions, Parameters
 
 
@@ -60,6 +59,7 @@ def _stress(label: str, p: float, k0_c: float, etas: list[float]) -> tuple[float
 
 
 def _ratios(sa, sr, v, beta, params, options) -> dict[str, np.ndarray]:
+    """The model's E_h/E_v at the states, in full and split by source."""
     dem = xr.Dataset(
         {
             "axial_stress": ("point", np.asarray(sa, dtype=float)),
@@ -68,17 +68,12 @@ def _ratios(sa, sr, v, beta, params, options) -> dict[str, np.ndarray]:
             "fabric": ("point", np.asarray(beta, dtype=float)),
         }
     )
-    from bridge.moduli import moduli_at_states
-
-    try:
-        full = moduli_at_states(sa, sr, v, beta, params, options)["stiffness_ratio"]
-    except TivModelError:  # outside the energy's convexity (ω β_s² ≥ 3/2) or not invertible
-        full = np.full(len(sa), np.nan)
-    out = {"full": full}
     parts = anisotropy_parts(dem, params, options)
-    out["stress"] = parts["stiffness_ratio_stress_only"][0]
-    out["fabric"] = parts["stiffness_ratio_fabric_only"][0]
-    return out
+    return {
+        "full": stiffness_ratio_or_nan(sa, sr, v, beta, params, options),
+        "stress": parts["stiffness_ratio_stress_only"][0],
+        "fabric": parts["stiffness_ratio_fabric_only"][0],
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
             f"| {label} | {s['p']:.4g} | {sr / sa:.3f} | {s['v']:.4g} | {s['beta']:.3f} | "
             f"{s['ratio']:.3f} | {r['full'][0]:.3f} | {r['stress'][0]:.3f} | {r['fabric'][0]:.3f} |"
         )
-    v_b = states["B"]["v"] if "B" in states else params.N
+    v_b = states["B"]["v"] if "B" in states else params.ncl_intercept
     lines += [
         "",
         f"## The two sources apart, at p = 100 kPa and v = {v_b:.4g}",
@@ -132,8 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     betas = [0.0, 0.1, 0.2, 0.3, 0.4]
     for eta, beta in zip(etas_q, betas, strict=True):
         sa, sr = 100.0 * (1 + 2 * eta / 3), 100.0 * (1 - eta / 3)
-        stress_only = _ratios([sa], [sr], [v_b], [0.0], params, options)["full"][0]
-        fabric_only = _ratios([100.0], [100.0], [v_b], [beta], params, options)["full"][0]
+        stress_only = stiffness_ratio_or_nan([sa], [sr], [v_b], [0.0], params, options)[0]
+        fabric_only = stiffness_ratio_or_nan([100.0], [100.0], [v_b], [beta], params, options)[0]
         lines.append(
             f"| {eta:.1f} | {sr / sa:.3f} | {stress_only:.3f} | | {beta:.1f} | {fabric_only:.3f} |"
         )

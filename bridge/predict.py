@@ -318,14 +318,24 @@ def anisotropy_parts(
             "TIV E_oed,h/E_oed,v at the DEM fabric, stress p",
         ),
     }
-    parts = {}
-    for name, (axial, radial, fabric, long_name) in cases.items():
-        try:
-            ratio = moduli_at_states(axial, radial, v, fabric, params, options)["stiffness_ratio"]
-        except TivModelError:
-            ratio = np.full(np.shape(sa), np.nan)
-        parts[name] = (np.asarray(ratio, dtype=float), long_name)
-    return parts
+    return {
+        name: (stiffness_ratio_or_nan(axial, radial, v, fabric, params, options), long_name)
+        for name, (axial, radial, fabric, long_name) in cases.items()
+    }
+
+
+def stiffness_ratio_or_nan(
+    axial_stress, radial_stress, specific_volume, fabric, params: Parameters, options: ModelOptions
+) -> np.ndarray:
+    """The model's E_oed,h/E_oed,v at the given states (:func:`bridge.moduli.moduli_at_states`),
+    all NaN where the elastic law cannot be inverted or the energy is not convex there."""
+    try:
+        ratio = moduli_at_states(
+            axial_stress, radial_stress, specific_volume, fabric, params, options
+        )["stiffness_ratio"]
+    except TivModelError:
+        ratio = np.full(np.shape(np.atleast_1d(axial_stress)), np.nan)
+    return np.asarray(ratio, dtype=float)
 
 
 def summary(predictions: Mapping[str, xr.Dataset]) -> list[dict[str, object]]:

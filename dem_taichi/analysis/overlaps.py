@@ -47,20 +47,19 @@ def max_overlap(
     ``cell_lengths`` (L_x, L_y) of the periodic rectangular cell, lengths in the DEM unit.
     """
     centres = disc_positions(rod_position, rod_angle, n_spheres, spacing)
-    rod_of_disc = np.arange(centres.shape[0]) // n_spheres
-    return disc_max_overlap(centres, rod_of_disc, cell_lengths, diameter)
+    return disc_max_overlap(centres, n_spheres, cell_lengths, diameter)
 
 
 def disc_max_overlap(
-    centres: np.ndarray, rod_of_disc: np.ndarray, cell_lengths: np.ndarray, diameter: float
+    centres: np.ndarray, n_spheres: int, cell_lengths: np.ndarray, diameter: float
 ) -> float:
     """Largest δ/d over pairs of discs of different rods (0 when no pair touches).
 
-    ``centres`` (M, 2) disc centres (wrapped here into the periodic cell ``cell_lengths``),
-    ``rod_of_disc`` (M,) the rod each disc belongs to (pairs within one rod are excluded).
+    ``centres`` (M, 2) disc centres, rod-major (disc s of rod r at row r·n_s + s; pairs within
+    one rod are excluded), wrapped here into the periodic cell ``cell_lengths``.
     """
     lengths = np.asarray(cell_lengths, dtype=float)
-    rods = np.asarray(rod_of_disc)
+    rods = np.arange(len(centres)) // n_spheres
     wrapped = np.mod(np.asarray(centres, dtype=float), lengths)
     wrapped = np.where(wrapped >= lengths, wrapped - lengths, wrapped)  # mod's rounding to L
     pairs = cKDTree(wrapped, boxsize=lengths).query_pairs(diameter, output_type="ndarray")
@@ -109,8 +108,7 @@ def state_max_overlap(path: str | Path) -> float:
         return max_overlap(
             bodies, arrays["angle"], lengths, n_spheres, float(particles.spacing), diameter
         )
-    rod_of_disc = np.arange(bodies.shape[0]) // n_spheres
-    return disc_max_overlap(bodies, rod_of_disc, lengths, diameter)
+    return disc_max_overlap(bodies, n_spheres, lengths, diameter)
 
 
 def run_max_overlap(folder: str | Path) -> float:
