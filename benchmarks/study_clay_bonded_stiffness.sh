@@ -14,27 +14,9 @@
 #   usage: bash benchmarks/study_clay_bonded_stiffness.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-# bonded_cell CELL [--set ...]: the cell's isotropic runs, seeds 11, 2, 12, with extra keys
-bonded_cell() {
-  local cell=$1 seed; shift
-  for seed in 11 2 12; do
-    run_protocol ${cell}_s$seed study_demo --workers 1 --set scene.seed=$seed \
-      --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
-      --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
-      --set protocol.run_k0=false --set protocol.run_unloading=false \
-      --set protocol.save_path_states=true --set 'probing.states=A, B' "$@"
-  done
-}
-bonded_cell KB300
+bonded_cell KB300  # (study_clay_run.sh)
 for seed in 11 2 12; do
-  name=KB300_s$seed
-  [[ -n $ONLY && ! $name =~ $ONLY ]] && continue
-  [ -f "$OUT/$name/summary.json" ] && [ ! -f "$OUT/${name}_k0.json" ] || continue
-  start=$(date +%s)
-  "$PY" "$(dirname "${BASH_SOURCE[0]}")/paired_paths.py" --from-run "$OUT/$name" \
-    --variant "k0=protocol.run_k0=true;protocol.run_unloading=true;probing.states=A, B, C, B'" \
-    --branches k0 --workers 1 --out "$OUT/${name}_k0.json" > "$OUT/${name}_k0.log" 2>&1
-  echo "${name}_k0 rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  k0_from_run KB300_s$seed
 done
 # KB300F600 (stated after KB300's results, before its own runs; the page's last section): the same
 # cell with the attraction doubled at the same range (F_max 600, k_a 1200: g_max 0.5 d), so that

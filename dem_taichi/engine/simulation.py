@@ -280,6 +280,26 @@ class Simulation:
         self.step, self.reference_lengths = restored.step, restored.reference_lengths
         self._rates = restored.rates
 
+    def load_gas(self, gas: GasState, step: int, time: float) -> None:
+        """Replace the bodies and the cell by ``gas`` at ``step`` and simulated ``time``: the
+        hand-over from a rigid-rod ageing to bonded rods (:mod:`dem_taichi.protocol.
+        rigid_ageing`). ``gas`` holds this scene's bodies, or, for bonded rods, its rods (then
+        made straight chains moving rigidly, :func:`~dem_taichi.scene.geometry.
+        bodies_from_rods`). The runtime parameters (Δt, rates) and the strain reference are
+        kept; the contacts start afresh (tangential and rolling springs at zero, the neighbour
+        list rebuilt) and the forces are recomputed."""
+        if self.bonded and len(gas.angle) == self.n_rods:
+            gas = bodies_from_rods(gas, self.geometry)
+        if len(gas.angle) != self.n_bodies:
+            raise ValueError(
+                f"gas of {len(gas.angle)} bodies does not fit this simulation ({self.n_bodies} "
+                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
+            )
+        upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
+        self.state_io.forget_contacts(time)
+        self.step = int(step)
+        self._prime()
+
     def set_strain_reference(self) -> None:
         """Take the current cell as L0 of the logarithmic strains."""
         self.reference_lengths = self.cell_lengths.astype(np.float64)

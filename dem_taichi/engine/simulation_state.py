@@ -125,6 +125,23 @@ class SimulationState:
         self._launch(place_all_discs, ns=self.body.n_spheres)
         return restored
 
+    def forget_contacts(self, time: float) -> None:
+        """Empty the neighbour lists with their tangential and rolling springs (the contacts
+        start afresh at the next list build) and set the cell's simulated ``time``: the rest of
+        a fresh upload of bodies (:func:`dem_taichi.engine.device_allocation.upload_gas`)."""
+        a = self.a
+        for name in ("nbr_count", "old_count"):
+            a[name].from_numpy(np.zeros(a[name].shape, dtype=np.int32))
+        for name in ("nbr_xi", "nbr_psi", "old_xi", "old_psi"):
+            a[name].from_numpy(np.zeros(a[name].shape, dtype=self._real))
+        self.set_time(time)
+
+    def set_time(self, time: float) -> None:
+        """Set the cell's simulated ``time`` (the clock the measures report)."""
+        cell = self.a["cell"].to_numpy()
+        cell[L.C_TIME] = time
+        self.a["cell"].from_numpy(cell)
+
 
 def checkpoint_meta(
     scene: Scene,

@@ -20,6 +20,7 @@ from dem_taichi.protocol.quasistatic import (
     rescale_speed,
 )
 from dem_taichi.protocol.records import ProtocolError
+from dem_taichi.protocol.rigid_ageing import hand_over, rigid_twin
 from dem_taichi.protocol.rod_thermostat import rod_speed
 
 __all__ = ["aggregate"]
@@ -48,6 +49,10 @@ def aggregate(runner) -> dict:
        afresh, a bonded rod's discs moving with it (:func:`~dem_taichi.protocol.
        rod_thermostat.rod_speed`).
 
+    With ``aggregation_rod_model = "rigid"`` on bonded rods, steps 1 and 2 run on a rigid twin
+    of the rods at its own Δt, the check interval kept in time, and the rods are handed back as
+    straight chains at the end (:mod:`dem_taichi.protocol.rigid_ageing`).
+
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
     """
@@ -60,6 +65,10 @@ def aggregate(runner) -> dict:
     record = runner._record(stage)
     every = sim.scene.output.every
     progress = runner._begin_stage(stage, None)
+    twin = rigid_twin(sim) if c.ages_rigid(sim.scene) else None
+    scene_dt = sim.time_step
+    if twin is not None:  # steps 1 and 2 on the rigid twin (module docstring)
+        sim = twin
     start = sim.measure()
     phi_start = 1.0 / start["specific_volume"]
     details: dict = {
@@ -71,6 +80,8 @@ def aggregate(runner) -> dict:
         "coordination_number_start": start["coordination_number"],
         "step_start": start["step"],
     }
+    if twin is not None:
+        details.update(rod_model="rigid", time_step_ratio=twin.time_step / scene_dt)
     # 1. compression of the gas to the ageing area fraction
     phi_target = c.aggregation_area_fraction
     if phi_target is not None and phi_target > phi_start:
@@ -100,17 +111,21 @@ def aggregate(runner) -> dict:
         sim.set_parameters(time_step=base_dt * factor)
         details["time_step_factor"] = factor
     try:
-        return _age(runner, c, sim, stage, record, progress, measures, details, t0)
+        _age(runner, c, sim, stage, record, progress, measures, details, t0)
     finally:
         if factor != 1.0:
             sim.set_parameters(time_step=base_dt)
+    if twin is not None:
+        details.update(hand_over(twin, runner.sim))
+    return details
 
 
 def _age(runner, c, sim, stage, record, progress, measures, details, t0) -> dict:
     """Step 2 of :func:`aggregate`: the ageing at fixed cell, at the time step set."""
     dt = sim.time_step
-    factor = c.aggregation_time_step_factor or 1.0
-    # the thermostat's check interval kept in time (the scene's relax_check_steps at its Δt)
+    # the thermostat's check interval kept in time (the scene's relax_check_steps at its Δt; a
+    # rigid twin's Δt is time_step_ratio times the bonded scene's)
+    factor = (c.aggregation_time_step_factor or 1.0) * details.get("time_step_ratio", 1.0)
     check_steps = max(int(round(c.relax_check_steps / factor)), 1)
     limit = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
     assert limit is not None  # ProtocolConfig.check

@@ -123,7 +123,9 @@ def _reference_time_step() -> float:
     return REFERENCE_DT_SAFETY * contact_duration(1.0e5, gamma, 1.0)
 
 
-def _protocol_steps(scene) -> float:
+def _protocol_steps(scene) -> tuple[float, float]:
+    """(steps of the whole protocol, of which on a rigid twin: the ageing of bonded rods with
+    ``aggregation_rod_model = "rigid"``)."""
     from dem_taichi.scene.probing_sections import probing_settings
     from dem_taichi.scene.protocol_sections import protocol_settings
 
@@ -157,13 +159,17 @@ def _protocol_steps(scene) -> float:
         probes = n_states + n_paths * per_path
         if probing.dynamic_states.strip() != "all":
             probes = len([s for s in probing.dynamic_states.split(",") if s.strip()])
-    ageing = 0.0
+    ageing, rigid = 0.0, 0.0
     if c.aggregates:
         ageing_time = c.aggregation_time if c.aggregation == "time" else c.aggregation_max_time
         factor = c.aggregation_time_step_factor or 1.0  # the ageing's Δt, a multiple
-        ageing = (ageing_time or 0.0) / (scene.time_step * factor)  # exact: a hold at fixed cell
+        ageing_scene = scene  # bonded rods aged as rigid: the rigid twin's Δt and bodies
+        if c.ages_rigid(scene):
+            ageing_scene = scene.replace(particles={"rod_model": "rigid"})
+        ageing = (ageing_time or 0.0) / (ageing_scene.time_step * factor)  # exact: a hold
+        rigid = ageing if ageing_scene is not scene else 0.0
     steps = REFERENCE_STEPS["gas_to_A"] + rate * servo * paths + probes * DYNAMIC_PROBE_STEPS
-    return dt * steps + ageing
+    return dt * steps + ageing, rigid
 
 
 def estimate_cost(scene, command: str = "protocol", precision: str = "f64") -> CostEstimate:
@@ -175,15 +181,16 @@ def estimate_cost(scene, command: str = "protocol", precision: str = "f64") -> C
     if command == "run":
         from dem_taichi.protocol.run_schedule import builtin_schedule
 
-        steps, exact = float(sum(n for _, n, _ in builtin_schedule(scene))), True
+        steps, rigid, exact = float(sum(n for _, n, _ in builtin_schedule(scene))), 0.0, True
     else:
-        steps, exact = _protocol_steps(scene), False
+        (steps, rigid), exact = _protocol_steps(scene), False
     per_disc = SECONDS_PER_DISC_STEP
     if not scene.long_range.enabled:
         per_disc *= CONTACT_ONLY_FACTOR
+    rigid_seconds = rigid * (SECONDS_PER_STEP + per_disc * discs)  # a rigid twin's ageing
     if p.rod_model == "bonded":
         per_disc *= BONDED_FACTOR
-    seconds = steps * (SECONDS_PER_STEP + per_disc * discs)
+    seconds = (steps - rigid) * (SECONDS_PER_STEP + per_disc * discs) + rigid_seconds
     return CostEstimate(steps, seconds, _memory_bytes(scene, precision), exact)
 
 

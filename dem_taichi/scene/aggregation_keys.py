@@ -78,6 +78,15 @@ without them runs (and writes its TOML and hash) as before.
   ``study_demo`` (three seeds, ``benchmarks/results/ageing_time_step.md``): not a lever. The
   coarse ageing built a less connected gel on every seed (Z at its end lower by 0.08–0.21)
   with K0 at C higher, and took 0.74–0.79 of the time, not half.
+- ``aggregation_rod_model`` [unset = the scene's [particles] rod_model; "rigid" | "bonded"]:
+  the rods the gas is compressed and aged as. "rigid" on bonded rods: both steps run on a rigid
+  twin of the rods (the same discs, contacts, attraction, thermostat draws), at the rigid
+  scene's Δt, which the contacts alone set (at k_n 3e5: 2.2 times the bonded Δt, which the
+  bonds' period sets) with one body per rod; the rods are then handed back as straight bonded
+  chains, their contacts' tangential and rolling springs starting from zero, and the
+  compression to A follows on bonded rods (a speed lever of issue 20:
+  :mod:`dem_taichi.protocol.rigid_ageing`). "rigid" on rigid rods is their own model;
+  "bonded" needs bonded rods. With "rigid", the "clusters" thermostat is allowed on bonded rods.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
@@ -216,6 +225,18 @@ AGGREGATION_KEYS: dict[str, dict[str, Any]] = {
         ),
         "optional": True,
     },
+    "aggregation_rod_model": {
+        **_choices(
+            "rigid",
+            "bonded",
+            doc=(
+                "the rods the gas is compressed and aged as (unset: the scene's rod_model);"
+                " 'rigid' on bonded rods ages a rigid twin at its larger Δt, then hands the"
+                " rods back as straight chains"
+            ),
+        ),
+        "optional": True,
+    },
 }
 
 
@@ -241,6 +262,7 @@ def check_aggregation_keys(keys: Mapping[str, Any]) -> None:
                 "aggregation_area_fraction",
                 "aggregation_speed",
                 "aggregation_time_step_factor",
+                "aggregation_rod_model",
             )
             if keys[k] is not None
         ]

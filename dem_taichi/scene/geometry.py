@@ -23,6 +23,7 @@ __all__ = [
     "rod_geometry",
     "body_geometry",
     "bodies_from_rods",
+    "rods_from_bodies",
     "species_parameters",
     "GasState",
     "generate_gas",
@@ -111,6 +112,48 @@ def bodies_from_rods(gas: GasState, geometry: RodGeometry) -> GasState:
         np.repeat(gas.angle, n_s),
         velocity.reshape(-1, 2),
         np.repeat(gas.angular_velocity, n_s),
+    )
+
+
+def rods_from_bodies(
+    discs: np.ndarray,
+    velocity: np.ndarray,
+    angular_velocity: np.ndarray,
+    geometry: RodGeometry,
+    cell_lengths: np.ndarray,
+) -> GasState:
+    """The gas of rigid rods closest to bonded rods' discs: the inverse of
+    :func:`bodies_from_rods` for a straight chain moving rigidly, and the rigid-body part of the
+    motion of any chain.
+
+    ``discs`` (N, n_s, 2): each rod's disc centres made contiguous across the periodic cell
+    (:func:`dem_taichi.physics.bonds.unwrapped_chains`), rod-major; ``velocity`` (N n_s, 2) and
+    ``angular_velocity`` (N n_s,) the discs'. Each rod: centre X = the mean of its discs (equal
+    masses), wrapped into [0, L); angle θ of its end-to-end vector, in (−π, π]; velocity
+    V = the mean of the disc velocities (momentum); angular velocity Ω = L / I with the angular
+    momentum about X, L = Σ m (x_i − X) × (v_i − V) + I_d Σ ω_i, and I = Σ m |x_i − X|² + n_s I_d
+    (I_d = m d²/8, the disc's own), so that a rigidly moving chain keeps its Ω exactly.
+    """
+    discs = np.asarray(discs, dtype=float)
+    n_rods, n_s = discs.shape[0], discs.shape[1]
+    if n_s != geometry.n_spheres:
+        raise ValueError(f"chains of {n_s} discs do not fit rods of {geometry.n_spheres}")
+    m = geometry.disc_mass
+    disc_inertia = m * geometry.diameter**2 / 8.0
+    v = np.asarray(velocity, dtype=float).reshape(n_rods, n_s, 2)
+    w = np.asarray(angular_velocity, dtype=float).reshape(n_rods, n_s)
+    centre = discs.mean(axis=1)
+    end_to_end = discs[:, -1] - discs[:, 0]
+    angle = np.arctan2(end_to_end[:, 1], end_to_end[:, 0])
+    rod_velocity = v.mean(axis=1)
+    arm = discs - centre[:, None, :]
+    rel = v - rod_velocity[:, None, :]
+    momentum = m * np.sum(arm[..., 0] * rel[..., 1] - arm[..., 1] * rel[..., 0], axis=1)
+    momentum += disc_inertia * w.sum(axis=1)
+    inertia = m * np.sum(arm * arm, axis=(1, 2)) + n_s * disc_inertia
+    lengths = np.asarray(cell_lengths, dtype=float)
+    return GasState(
+        lengths.copy(), np.mod(centre, lengths), angle, rod_velocity, momentum / inertia
     )
 
 

@@ -422,6 +422,9 @@ class ProtocolConfig(SceneSection):
     aggregation_time_step_factor: float | None = field(
         default=None, metadata=AGGREGATION_KEYS["aggregation_time_step_factor"]
     )
+    aggregation_rod_model: str | None = field(
+        default=None, metadata=AGGREGATION_KEYS["aggregation_rod_model"]
+    )
     pressure_tolerance_reduced: float | None = field(
         default=None,
         metadata={
@@ -469,6 +472,12 @@ class ProtocolConfig(SceneSection):
         """Whether the run has an aggregation stage before the compression to A."""
         return (self.aggregation or "none") != "none"
 
+    def ages_rigid(self, scene) -> bool:
+        """Whether the aggregation stage runs on a rigid twin of the scene's bonded rods
+        (``aggregation_rod_model = "rigid"`` on bonded rods:
+        :mod:`dem_taichi.protocol.rigid_ageing`)."""
+        return self.aggregates and scene.bonded and self.aggregation_rod_model == "rigid"
+
     def check_scene(self, scene) -> None:
         """The checks that need the rest of the scene ([particles], [long_range]): an
         aggregation area fraction below the gas's, the cluster thermostat on bonded rods, a
@@ -483,11 +492,22 @@ class ProtocolConfig(SceneSection):
                 f"initial_area_fraction = {phi0!r}: allowed [{phi0!r}, 1) (the gas is only "
                 "compressed before ageing)"
             )
-        if self.aggregation_thermostat == "clusters" and scene.bonded:
+        if self.aggregation_rod_model == "bonded" and not scene.bonded:
+            raise SceneError(
+                "[protocol] aggregation_rod_model = 'bonded' needs bonded rods; this scene's "
+                "[particles] rod_model = 'rigid': remove aggregation_rod_model or set "
+                "rod_model = 'bonded'"
+            )
+        if (
+            self.aggregation_thermostat == "clusters"
+            and scene.bonded
+            and self.aggregation_rod_model != "rigid"
+        ):
             raise SceneError(
                 "[protocol] aggregation_thermostat = 'clusters' needs rigid rods (a bonded "
                 "rod's discs are bodies of their own); this scene's [particles] rod_model = "
-                "'bonded': use rod_model = 'rigid', or another aggregation_thermostat"
+                "'bonded': use rod_model = 'rigid', aggregation_rod_model = 'rigid' (age the "
+                "gas as rigid rods), or another aggregation_thermostat"
             )
         lr = scene.long_range
         if self.pressure_tolerance_reduced is not None and not (
