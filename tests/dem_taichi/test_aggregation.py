@@ -548,6 +548,12 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
          ["aggregation_time_step_factor", "out of range"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_time_step_factor = 0.0\n',
          ["aggregation_time_step_factor", "out of range"]),
+        ('aggregation_rod_model = "rigid"\n',
+         ["aggregation_rod_model", "used only", "aggregation = 'none'"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_rod_model = "flexible"\n',
+         ["aggregation_rod_model", "rigid", "bonded"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_rod_model = "bonded"\n',
+         ["aggregation_rod_model = 'bonded' needs bonded rods", "rod_model = 'rigid'"]),
     ],
 )  # fmt: skip
 def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):
