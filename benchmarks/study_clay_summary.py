@@ -46,6 +46,7 @@ EXPERIMENTS = (
         "study_clay_bonded_stiffness.sh",
         "study_clay_bonded_stiffness.md",
     ),
+    ("ageing_rigid_rods_cells.csv", "ageing_rigid_rods.sh", "ageing_rigid_rods.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell

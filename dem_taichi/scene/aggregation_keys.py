@@ -87,6 +87,11 @@ without them runs (and writes its TOML and hash) as before.
   compression to A follows on bonded rods (a speed lever of issue 20:
   :mod:`dem_taichi.protocol.rigid_ageing`). "rigid" on rigid rods is their own model;
   "bonded" needs bonded rods. With "rigid", the "clusters" thermostat is allowed on bonded rods.
+  Measured on the bonded study cell KB300 (three seeds, criteria stated before the runs,
+  ``benchmarks/results/ageing_rigid_rods.md``): the ageing in 0.14 of the time, the isotropic
+  run in 0.31, but not the same material: K0 at C higher on every seed (+0.12 ± 0.16), λ* and
+  the moduli exponent moved beyond the bonded cell's seed-to-seed spread. An option, not a
+  default; no scene uses it.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
