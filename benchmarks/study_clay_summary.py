@@ -47,6 +47,11 @@ EXPERIMENTS = (
         "study_clay_bonded_stiffness.md",
     ),
     ("ageing_rigid_rods_cells.csv", "ageing_rigid_rods.sh", "ageing_rigid_rods.md"),
+    (
+        "study_clay_bonded_paper_size_cells.csv",
+        "study_clay_bonded_paper_size.sh",
+        "study_clay_bonded_paper_size.md",
+    ),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -79,8 +84,12 @@ fit (KB300: k_n 3e5, `study_clay_bonded_stiffness`, the K0 paths added from each
 the study's stiffness level (E_v/p at B 105 ± 22), overlaps of about 1 % of d (rigid: 4–6 %) and
 the finding on every seed at 300 rods (C − B +0.42 ± 0.28, K0 0.57 ± 0.06), with λ* 0.165 ±
 0.010; doubling their attraction (KB300F600) lowers λ* on the mapped window (0.141 ± 0.027) and
-the stiffness (E_v/p 83 ± 35). Not run: stage 2 with bonded rods (12,160 bodies, about 2–3 h per
-seed on 2 cores). The TIV
+the stiffness (E_v/p 83 ± 35). Aged as rigid rods (KBR300, `ageing_rigid_rods`) the bonded cell
+costs 0.31 of the time but is another material (K0 at C +0.12 ± 0.16, higher on every seed;
+C − B +0.78 ± 0.69). Stage 2 with bonded rods ran for that material on one seed
+(`study_clay_bonded_paper_size`, KBR1520, 77 min without radial paths): E_v/p at B 101, λ* 0.157,
+C − B +0.62, K0 0.64, overlaps 1.3 % of d. KB300 itself at 1520 rods (about 2–3 h per seed) is
+not run. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
