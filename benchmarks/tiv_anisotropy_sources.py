@@ -30,17 +30,32 @@ import numpy as np
 import xarray as xr
 
 from bridge.predict import anisotropy_parts, stiffness_ratio_or_nan
+from bridge.study_figure_panels import state_means
 from tiv_model.params import ModelOptions, Parameters
 
 
 def _states(table: Path) -> dict[str, dict[str, float]]:
-    """The mean p, v, β and DEM E_h/E_v of each state row of a figure2_replicas.md table."""
+    """The mean p, v, β and DEM E_h/E_v at each labelled state of a Figure-2 replica output:
+    its bands (``figure2_replicas.nc``, written since 2026-12-03) or, for the tables written
+    before them, the rows of ``figure2_replicas.md`` (means as printed, 4 digits)."""
+    if table.suffix == ".nc":
+        with xr.open_dataset(table) as bands:
+            means = state_means(bands.load())
+        return {
+            label.replace("'", "′"): {
+                "p": m["mean_stress"],
+                "v": m["specific_volume"],
+                "beta": m["fabric"],
+                "ratio": m["stiffness_ratio"],
+            }
+            for label, m in means.items()
+        }
     rows = {}
     for line in table.read_text().splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if len(cells) < 11 or not re.match(r"^[A-Z]", cells[0]) or cells[0] == "state":
             continue
-        mean = [float(c.split("±")[0]) for c in cells[1:]]
+        mean = [float("nan") if c == "—" else float(c.split("±")[0]) for c in cells[1:]]
         rows[cells[0]] = {"p": mean[0], "v": mean[2], "beta": mean[4], "ratio": mean[8]}
     return rows
 
@@ -79,7 +94,9 @@ def _ratios(sa, sr, v, beta, params, options) -> dict[str, np.ndarray]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--parameters", type=Path, required=True)
-    parser.add_argument("--states", type=Path, required=True)
+    parser.add_argument(
+        "--states", type=Path, required=True, help="figure2_replicas.nc (or .md) of bridge figure2"
+    )
     parser.add_argument("--k0-c", type=float, required=True)
     parser.add_argument("--radial-eta", default="0.2,0.35,0.5")
     parser.add_argument("--anisotropy", default="A", choices=("A", "B"))

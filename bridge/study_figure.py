@@ -9,7 +9,9 @@
   β–p, c: E_oed,v and E_oed,h against p, d: E_h/E_v against p) with our means as markers with
   95 % error bars, the study's curves as lines, one colour per path as in
   :mod:`bridge.figures`; beside it ``figure2_replicas.md``, the table of both at the labelled
-  states A, B, C, B′ and the radial ends.
+  states A, B, C, B′ and the radial ends, and ``figure2_replicas.nc``, the replica bands
+  themselves (every aligned record and probe: mean and 95 % half-width, with units), which
+  scripts read instead of the table (:func:`bridge.study_figure_panels.state_means`).
 
 Command line: ``python -m bridge figure2 --replicas RUN_DIR [RUN_DIR ...] --out DIR`` (a sweep
 folder's finished members are its replicas, as for ``calibrate --replicas``).
@@ -37,6 +39,7 @@ from tiv_model.errors import TivModelError
 from tiv_model.params import DEFAULT_OPTIONS, TABLE1, ModelOptions, Parameters
 
 from .command_options import add_k0_mode_option, add_model_options
+from .outputs import write_netcdf
 from .predict import K0_MODES, PredictionError
 from .replica_bands import path_members, replica_bands
 from .runs import RUN_VARIABLES, isotropic_run, k0_run, stress_path_run, unloading_run
@@ -48,6 +51,7 @@ __all__ = ["replica_bands", "study_curves", "figure2", "figure2_markdown", "writ
 PROG = "python -m bridge figure2"
 FIGURE = "figure2_replicas.png"
 TABLE = "figure2_replicas.md"
+BANDS = "figure2_replicas.nc"
 _UNITS = SERIES_VARIABLES | {
     "stiffness_ratio": ("1", "E_oed,h / E_oed,v"),
     "preconsolidation_pressure": ("kPa", "preconsolidation pressure"),
@@ -198,10 +202,11 @@ def write_study_figure(
     substeps: int = 4,
     **band_options,
 ) -> Path:
-    """Write ``figure2_replicas.png`` and ``figure2_replicas.md`` into ``out_dir`` (made if
-    needed; each file replaced atomically, never written through a link); returns the figure's
-    path. ``band_options`` (``stress_scale_kpa``, ``convention``, ``fabric_scale``,
-    ``probe_method``) go to :func:`replica_bands`, the rest to :func:`study_curves`."""
+    """Write ``figure2_replicas.png``, ``figure2_replicas.md`` and ``figure2_replicas.nc`` (the
+    bands) into ``out_dir`` (made if needed; each file replaced atomically, never written
+    through a link); returns the figure's path. ``band_options`` (``stress_scale_kpa``,
+    ``convention``, ``fabric_scale``, ``probe_method``) go to :func:`replica_bands`, the rest
+    to :func:`study_curves`."""
     bands = replica_bands(runs, **band_options)
     curves = study_curves(bands, parameters, options, k0_mode, substeps)
     out = Path(out_dir)
@@ -214,6 +219,7 @@ def write_study_figure(
         plt.close(fig)
     text = figure2_markdown(bands, curves, k0_mode, label)
     replace_file(out / TABLE, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    write_netcdf(bands, out / BANDS)
     return path
 
 

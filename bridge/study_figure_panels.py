@@ -82,6 +82,16 @@ HEADER = (
 )
 
 
+def state_means(bands: xr.Dataset) -> dict[str, dict[str, float]]:
+    """The replica means of the table's DEM columns (:data:`COLUMNS`: p in kPa, v, β,
+    E_oed,v/p, E_h/E_v) at each labelled state of ``bands`` (NaN where a state has none): the
+    numbers of :func:`figure2_markdown`'s DEM cells, unrounded."""
+    return {
+        state: {name: _at(bands, state, name, prefix)[0] for name, prefix in COLUMNS}
+        for state in _labels(bands)
+    }
+
+
 def _model_values(point: xr.Dataset | None) -> dict[str, float]:
     """The study model's values of :data:`COLUMNS` at one point of its curve ({}: none)."""
     if point is None:

@@ -214,6 +214,36 @@ def test_write_study_figure_writes_the_figure_and_its_table(replicas, bands, tmp
     assert "E_h/E_v DEM" in table and "over n = 3 replicas" in table
 
 
+def test_the_bands_file_gives_the_table_s_numbers_unrounded(replicas, tmp_path):
+    """``figure2_replicas.nc`` holds the bands with units; the DEM means read from it at each
+    labelled state (:func:`state_means`) are the table's DEM cells before rounding, and
+    ``benchmarks/tiv_anisotropy_sources.py`` reads the same states from either file."""
+    from bridge.study_figure_panels import state_means
+    from tests.scripts import load_script
+
+    out = tmp_path / "out"
+    write_study_figure(replicas, out, substeps=2)
+    with xr.open_dataset(out / "figure2_replicas.nc") as saved:
+        bands = saved.load()
+    assert bands["mean_stress"].attrs["units"] == "kPa" and int(bands["n"]) == 3
+    means = state_means(bands)
+    table = (out / "figure2_replicas.md").read_text(encoding="utf-8")
+    rows = {line.split("|")[1].strip(): line for line in table.splitlines() if line[:2] == "| "}
+    assert {label.replace("'", "′") for label in means} == set(rows) - {"state"}
+    for label, values in means.items():
+        cells = [c.strip() for c in rows[label.replace("'", "′")].split("|")[1:-1]]
+        for column, name in ((1, "mean_stress"), (3, "specific_volume"), (9, "stiffness_ratio")):
+            shown = f"{values[name]:.4g}" if np.isfinite(values[name]) else "—"
+            assert cells[column].split(" ± ")[0] == shown
+    sources = load_script("benchmarks/tiv_anisotropy_sources.py")
+    from_nc = sources._states(out / "figure2_replicas.nc")
+    from_md = sources._states(out / "figure2_replicas.md")
+    assert set(from_nc) == set(from_md)
+    for label, values in from_nc.items():
+        for key, value in values.items():
+            assert value == pytest.approx(from_md[label][key], rel=1e-3, abs=1e-4, nan_ok=True)
+
+
 def test_fewer_than_two_replicas_is_one_line(replicas):
     with pytest.raises(SeriesError, match="at least two runs") as error:
         replica_bands(replicas[:1])
