@@ -178,13 +178,7 @@ class Simulation:
         self.timings: dict[str, float] = {"kernel": 0.0, "measure": 0.0, "host": 0.0}
         self.n_rebuild_calls = 0
         gas = initial if initial is not None else generate_gas(scene)
-        if self.bonded and len(gas.angle) == self.n_rods:
-            gas = bodies_from_rods(gas, self.geometry)
-        if len(gas.angle) != self.n_bodies:
-            raise ValueError(
-                f"initial state of {len(gas.angle)} bodies does not fit this scene "
-                f"({self.n_bodies} bodies: {self.n_rods} {scene.particles.rod_model} rods)"
-            )
+        gas = self._as_bodies(gas, "initial state")
         self.cutoff, self.list_radius = resolved.cutoff, resolved.list_radius
         #: the scene's runtime parameters (the device array ``params`` holds them, with the
         #: run-time changes since: :attr:`parameters`)
@@ -288,17 +282,24 @@ class Simulation:
         bodies_from_rods`). The runtime parameters (Δt, rates) and the strain reference are
         kept; the contacts start afresh (tangential and rolling springs at zero, the neighbour
         list rebuilt) and the forces are recomputed."""
-        if self.bonded and len(gas.angle) == self.n_rods:
-            gas = bodies_from_rods(gas, self.geometry)
-        if len(gas.angle) != self.n_bodies:
-            raise ValueError(
-                f"gas of {len(gas.angle)} bodies does not fit this simulation ({self.n_bodies} "
-                f"bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
-            )
+        gas = self._as_bodies(gas, "gas")
         upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.state_io.forget_contacts(time)
         self.step = int(step)
         self._prime()
+
+    def _as_bodies(self, gas: GasState, what: str) -> GasState:
+        """``gas`` as this simulation's bodies: a gas of rods made straight chains for bonded
+        rods (:func:`~dem_taichi.scene.geometry.bodies_from_rods`); any other count refused,
+        naming it ``what``."""
+        if self.bonded and len(gas.angle) == self.n_rods:
+            gas = bodies_from_rods(gas, self.geometry)
+        if len(gas.angle) != self.n_bodies:
+            raise ValueError(
+                f"{what} of {len(gas.angle)} bodies does not fit this scene "
+                f"({self.n_bodies} bodies: {self.n_rods} {self.scene.particles.rod_model} rods)"
+            )
+        return gas
 
     def set_strain_reference(self) -> None:
         """Take the current cell as L0 of the logarithmic strains."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "rod_frames",
     "BondParameters",
     "BondResult",
     "bond_forces",
@@ -186,6 +187,19 @@ def unwrapped_chains(position: np.ndarray, chain: int, cell_lengths: np.ndarray)
     step -= np.round(step / lengths) * lengths
     start = discs[:, :1]
     return np.concatenate([start, start + np.cumsum(step, axis=1)], axis=1)
+
+
+def rod_frames(
+    discs: np.ndarray, disc_mass: float, disc_inertia: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(centres of mass X (N, 2), moments of inertia I (N,) about them) of rods of equal discs
+    at contiguous positions ``discs`` (N, n_s, 2): X = mean of the discs,
+    I = Σ m |x_i − X|² + n_s I_disc."""
+    discs = np.asarray(discs, dtype=float)
+    centre = discs.mean(axis=1)
+    arm = discs - centre[:, None, :]
+    inertia = disc_mass * np.sum(arm * arm, axis=(1, 2)) + discs.shape[1] * disc_inertia
+    return centre, inertia
 
 
 def rod_axes(position: np.ndarray, chain: int, cell_lengths: np.ndarray):

@@ -28,8 +28,9 @@ step), as :func:`resample_speed`'s, with the draws in the same order (V of shape
 the N spins): a bonded scene draws at a step the rod motions a rigid scene of as many rods and the
 same seed draws there (the spins scaled by each rod's own I). Deterministic and resumable.
 
-Pure numpy: :func:`rod_frames`, :func:`draw_rod_motion`, :func:`rigid_disc_velocities`;
-:func:`rod_speed` applies them to a simulation.
+Pure numpy: :func:`~dem_taichi.physics.bonds.rod_frames` (re-exported),
+:func:`draw_rod_motion`, :func:`rigid_disc_velocities`; :func:`rod_speed` applies them to a
+simulation.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from dem_taichi.engine.simulation import Simulation
-from dem_taichi.physics.bonds import unwrapped_chains
+from dem_taichi.physics.bonds import rod_frames, unwrapped_chains
 from dem_taichi.protocol.quasistatic import (
     RESAMPLE_STREAM,
     resample_speed,
@@ -45,19 +46,6 @@ from dem_taichi.protocol.quasistatic import (
 )
 
 __all__ = ["rod_frames", "draw_rod_motion", "rigid_disc_velocities", "rod_speed"]
-
-
-def rod_frames(
-    discs: np.ndarray, disc_mass: float, disc_inertia: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """(centres of mass X (N, 2), moments of inertia I (N,) about them) of rods of equal discs
-    at contiguous positions ``discs`` (N, n_s, 2): X = mean of the discs,
-    I = Σ m |x_i − X|² + n_s I_disc."""
-    discs = np.asarray(discs, dtype=float)
-    centre = discs.mean(axis=1)
-    arm = discs - centre[:, None, :]
-    inertia = disc_mass * np.sum(arm * arm, axis=(1, 2)) + discs.shape[1] * disc_inertia
-    return centre, inertia
 
 
 def draw_rod_motion(

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dem_taichi.physics.bonds import rod_frames
 from dem_taichi.physics.forcelaw import disc_offsets, rod_inertia
 from dem_taichi.scene.config import Scene, SceneError
 from dem_taichi.scene.gas_placement import PlacementError, place_rods
@@ -132,7 +133,8 @@ def rods_from_bodies(
     masses), wrapped into [0, L); angle θ of its end-to-end vector, in (−π, π]; velocity
     V = the mean of the disc velocities (momentum); angular velocity Ω = L / I with the angular
     momentum about X, L = Σ m (x_i − X) × (v_i − V) + I_d Σ ω_i, and I = Σ m |x_i − X|² + n_s I_d
-    (I_d = m d²/8, the disc's own), so that a rigidly moving chain keeps its Ω exactly.
+    (I_d = m d²/8, the disc's own; X and I from :func:`dem_taichi.physics.bonds.rod_frames`),
+    so that a rigidly moving chain keeps its Ω exactly.
     """
     discs = np.asarray(discs, dtype=float)
     n_rods, n_s = discs.shape[0], discs.shape[1]
@@ -142,7 +144,7 @@ def rods_from_bodies(
     disc_inertia = m * geometry.diameter**2 / 8.0
     v = np.asarray(velocity, dtype=float).reshape(n_rods, n_s, 2)
     w = np.asarray(angular_velocity, dtype=float).reshape(n_rods, n_s)
-    centre = discs.mean(axis=1)
+    centre, inertia = rod_frames(discs, m, disc_inertia)
     end_to_end = discs[:, -1] - discs[:, 0]
     angle = np.arctan2(end_to_end[:, 1], end_to_end[:, 0])
     rod_velocity = v.mean(axis=1)
@@ -150,7 +152,6 @@ def rods_from_bodies(
     rel = v - rod_velocity[:, None, :]
     momentum = m * np.sum(arm[..., 0] * rel[..., 1] - arm[..., 1] * rel[..., 0], axis=1)
     momentum += disc_inertia * w.sum(axis=1)
-    inertia = m * np.sum(arm * arm, axis=(1, 2)) + n_s * disc_inertia
     lengths = np.asarray(cell_lengths, dtype=float)
     return GasState(
         lengths.copy(), np.mod(centre, lengths), angle, rod_velocity, momentum / inertia

@@ -138,7 +138,7 @@ def test_load_gas_refuses_a_gas_of_another_size():
 
     sim = Simulation(bonded(attractive_scene()))
     gas = random_rods(3, sim.cell_lengths)
-    with pytest.raises(ValueError, match="gas of 3 bodies does not fit this simulation"):
+    with pytest.raises(ValueError, match="gas of 3 bodies does not fit this scene"):
         sim.load_gas(gas, 0, 0.0)
 
 
