@@ -9,7 +9,9 @@
 #   usage: bash benchmarks/ageing_rigid_rods.sh OUT [PYTHON] [ONLY]
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-bonded_cell KBR300 --set protocol.aggregation_rod_model=rigid
+# the springs reset at the hand-over, as in these runs (the default since is "kept")
+bonded_cell KBR300 --set protocol.aggregation_rod_model=rigid \
+  --set protocol.aggregation_springs=reset
 for seed in 11 2 12; do
   k0_from_run KBR300_s$seed
 done

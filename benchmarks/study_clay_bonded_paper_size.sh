@@ -13,7 +13,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 for seed in 11; do
   run_protocol KBR1520_s$seed study --workers 2 --set scene.seed=$seed \
     --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
-    --set protocol.aggregation_rod_model=rigid \
+    --set protocol.aggregation_rod_model=rigid --set protocol.aggregation_springs=reset \
     --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
     --set 'protocol.radial_stress_ratios=""' --set protocol.save_path_states=true \
     --set "probing.states=A, B, C, B'"

@@ -274,17 +274,27 @@ class Simulation:
         self.step, self.reference_lengths = restored.step, restored.reference_lengths
         self._rates = restored.rates
 
-    def load_gas(self, gas: GasState, step: int, time: float) -> None:
+    def load_gas(
+        self,
+        gas: GasState,
+        step: int,
+        time: float,
+        contacts: dict[str, np.ndarray] | None = None,
+    ) -> None:
         """Replace the bodies and the cell by ``gas`` at ``step`` and simulated ``time``: the
         hand-over from a rigid-rod ageing to bonded rods (:mod:`dem_taichi.protocol.
         rigid_ageing`). ``gas`` holds this scene's bodies, or, for bonded rods, its rods (then
         made straight chains moving rigidly, :func:`~dem_taichi.scene.geometry.
         bodies_from_rods`). The runtime parameters (Δt, rates) and the strain reference are
-        kept; the contacts start afresh (tangential and rolling springs at zero, the neighbour
-        list rebuilt) and the forces are recomputed."""
+        kept; the neighbour list is rebuilt and the forces are recomputed. The contacts start
+        afresh (tangential and rolling springs at zero), unless ``contacts`` (the neighbour
+        lists of a state dict whose discs are numbered as this scene's, e.g. the rigid twin's)
+        gives the springs to carry to the same disc pairs."""
         gas = self._as_bodies(gas, "gas")
         upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.state_io.forget_contacts(time)
+        if contacts is not None:
+            self.state_io.carry_contacts(contacts)
         self.step = int(step)
         self._prime()
 

@@ -136,6 +136,38 @@ class SimulationState:
             a[name].from_numpy(np.zeros(a[name].shape, dtype=self._real))
         self.set_time(time)
 
+    def carry_contacts(self, contacts: dict[str, np.ndarray]) -> None:
+        """Put the neighbour lists of ``contacts`` (a state dict's ``neighbours``,
+        ``tangential_spring``, ``rolling_spring`` and ``neighbour_count``, of bodies numbered
+        disc for disc as this simulation's) as the current list, so that the next list build
+        carries their tangential and rolling springs to the same disc pairs (matched by disc,
+        whatever the periodic image): the contacts of a rigid twin handed back to bonded rods
+        (:mod:`dem_taichi.protocol.rigid_ageing`). Call after :meth:`forget_contacts`, before
+        the build; the capacity grows to fit."""
+        count = np.asarray(contacts["neighbour_count"], dtype=np.int32)
+        if count.shape != (self.n_discs,):
+            raise ValueError(
+                f"contacts of {count.shape[0]} discs do not fit this simulation "
+                f"({self.n_discs} discs)"
+            )
+        full = bool(np.asarray(contacts.get("full_list", False)))
+        if full != self.full_list:
+            raise ValueError("contacts from a full (gather) list and a half list do not mix")
+        width = int(count.max(initial=0))
+        if width > self.a["nbr"].shape[1]:
+            self._grow(width)
+        a = self.a
+        for name, key in (("nbr", "neighbours"), ("nbr_xi", "tangential_spring"),
+                          ("nbr_psi", "rolling_spring")):  # fmt: skip
+            target = np.zeros(a[name].shape, dtype=np.int32 if name == "nbr" else self._real)
+            source = np.asarray(contacts[key])
+            if key == "rolling_spring" and source.shape[0] != target.shape[0]:
+                continue  # rolling springs where only one of the two has rolling resistance
+            rows = min(source.shape[0], target.shape[0])
+            target[:rows, :width] = source[:rows, :width]
+            a[name].from_numpy(target)
+        a["nbr_count"].from_numpy(count)
+
     def set_time(self, time: float) -> None:
         """Set the cell's simulated ``time`` (the clock the measures report)."""
         cell = self.a["cell"].to_numpy()

@@ -28,11 +28,24 @@ def sign(x):
 
 
 @ti.func
+def rod_axis(ns: T, theta):
+    """The axis (cos θ, sin θ) that places a body's discs; (1, 0) for one-disc bodies (``ns`` =
+    1: bonded rods' discs, single discs), whose disc sits at the centroid (offset 0), so the
+    axis places nothing and its cosine and sine are not computed. Bitwise the same positions;
+    for bonded rods the trigonometry was 15 % of a step (12,160 bodies; issue 20)."""
+    c = 1.0
+    s = 0.0
+    if ti.static(ns > 1):
+        c = ti.cos(theta)
+        s = ti.sin(theta)
+    return c, s
+
+
+@ti.func
 def place_rod_discs(ns: T, r, pos: T, angle: T, offsets: T, disc_x: T, disc_off: T, lx, ly):
     """Absolute disc positions of rod r from its reduced centroid and angle."""
-    place_rod_discs_cs(
-        ns, r, pos, ti.cos(angle[r]), ti.sin(angle[r]), offsets, disc_x, disc_off, lx, ly
-    )
+    c, s = rod_axis(ns, angle[r])
+    place_rod_discs_cs(ns, r, pos, c, s, offsets, disc_x, disc_off, lx, ly)
 
 
 @ti.func

@@ -38,7 +38,7 @@ same loops over ``pos.shape[0]`` bodies serve both.
 import taichi as ti
 
 from dem_taichi.kernels.bonds import add_bond_forces
-from dem_taichi.kernels.common import T, nd1, nd2, nd3, place_rod_discs_cs
+from dem_taichi.kernels.common import T, nd1, nd2, nd3, place_rod_discs_cs, rod_axis
 from dem_taichi.kernels.layout import (
     BLOWUP_NONFINITE,
     C_DISP,
@@ -180,7 +180,8 @@ def fire_mix_drift_rod(
     force[r, 0] = 0.0
     force[r, 1] = 0.0
     torque[r] = 0.0
-    place_rod_discs_cs(ns, r, pos, ti.cos(theta), ti.sin(theta), offsets, disc_x, disc_off, lx, ly)
+    c, s = rod_axis(ns, theta)
+    place_rod_discs_cs(ns, r, pos, c, s, offsets, disc_x, disc_off, lx, ly)
     max_offset = params[P_MAX_OFFSET]
     ddx = (pos[r, 0] - ref_pos[r, 0]) * lx
     ddy = (pos[r, 1] - ref_pos[r, 1]) * ly

@@ -41,6 +41,7 @@ from dem_taichi.kernels.common import (
     place_all_discs,
     place_rod_discs,
     place_rod_discs_cs,
+    rod_axis,
     sign,
 )
 from dem_taichi.kernels.layout import (
@@ -125,7 +126,8 @@ def kick_drift_rod(
     force[r, 0] = 0.0
     force[r, 1] = 0.0
     torque[r] = 0.0
-    place_rod_discs_cs(ns, r, pos, ti.cos(theta), ti.sin(theta), offsets, disc_x, disc_off, lx, ly)
+    c, s = rod_axis(ns, theta)
+    place_rod_discs_cs(ns, r, pos, c, s, offsets, disc_x, disc_off, lx, ly)
     max_offset = params[P_MAX_OFFSET]
     ddx = (pos[r, 0] - ref_pos[r, 0]) * lx
     ddy = (pos[r, 1] - ref_pos[r, 1]) * ly

@@ -116,7 +116,7 @@ def aggregate(runner) -> dict:
         if factor != 1.0:
             sim.set_parameters(time_step=base_dt)
     if twin is not None:
-        details.update(hand_over(twin, runner.sim))
+        details.update(hand_over(twin, runner.sim, c.aggregation_springs or "kept"))
     return details
 
 

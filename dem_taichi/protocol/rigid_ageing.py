@@ -13,8 +13,10 @@ thermostat draws exactly the rod motions on both (:mod:`dem_taichi.protocol.rod_
 
 At the end of the ageing the rods are handed back (:func:`hand_over`): each becomes a straight
 bonded chain moving as its rigid rod did (:func:`dem_taichi.scene.geometry.bodies_from_rods`),
-at the twin's step and time, and the contacts start afresh: the tangential and rolling springs of
-the gel's contacts are set to zero (their normal forces are recomputed from the same overlaps).
+at the twin's step and time. The discs are numbered alike (rod-major) and sit where they sat,
+so each contact keeps its geometry: its tangential and rolling springs are carried over
+(``[protocol] aggregation_springs = "kept"``, the default) or set to zero ("reset", what the
+first measurements used); the normal forces are recomputed from the same overlaps.
 The compression to A and every path after it run on bonded rods. What the ageing gives up is the
 rods' bending while they age: in the gas the thermostat leaves the bonds without kinetic energy
 at every draw, so they bend only under contact and attraction forces.
@@ -67,10 +69,15 @@ def rigid_twin(sim: Simulation) -> Simulation:
     return twin
 
 
-def hand_over(twin: Simulation, sim: Simulation) -> dict[str, Any]:
+def hand_over(twin: Simulation, sim: Simulation, springs: str = "kept") -> dict[str, Any]:
     """Load the twin's rods into the bonded ``sim`` as straight chains (module docstring) and add
-    the twin's timings to ``sim``'s; returns what the hand-over found (the mean stress before, on
-    the rigid rods, and after, with the contacts' springs at zero, and the coordination after)."""
+    the twin's timings to ``sim``'s; returns what the hand-over found (the mean stress and the
+    coordination before, on the rigid rods, and after). ``springs``: "kept" carries the
+    tangential and rolling springs of the twin's contacts to the same disc pairs (the twin's
+    discs are numbered as the chains' bodies, rod-major, and sit where they sat); "reset" starts
+    them from zero (``[protocol] aggregation_springs``)."""
+    if springs not in ("kept", "reset"):
+        raise ValueError(f"springs = {springs!r}: allowed values are kept | reset")
     state = twin.get_state()
     before = twin.measure()
     gas = GasState(
@@ -80,7 +87,7 @@ def hand_over(twin: Simulation, sim: Simulation) -> dict[str, Any]:
         state["velocity"].astype(float),
         state["angular_velocity"].astype(float),
     )
-    sim.load_gas(gas, twin.step, twin.time)
+    sim.load_gas(gas, twin.step, twin.time, contacts=state if springs == "kept" else None)
     after = sim.measure()
     for key, seconds in twin.timings.items():
         sim.timings[key] = sim.timings.get(key, 0.0) + seconds
@@ -91,4 +98,5 @@ def hand_over(twin: Simulation, sim: Simulation) -> dict[str, Any]:
         "handover_mean_stress": float(after["mean_stress"]),
         "handover_coordination_number_rigid": float(before["coordination_number"]),
         "handover_coordination_number": float(after["coordination_number"]),
+        "handover_springs": springs,
     }

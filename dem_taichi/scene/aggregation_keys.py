@@ -83,7 +83,7 @@ without them runs (and writes its TOML and hash) as before.
   twin of the rods (the same discs, contacts, attraction, thermostat draws), at the rigid
   scene's Δt, which the contacts alone set (at k_n 3e5: 2.2 times the bonded Δt, which the
   bonds' period sets) with one body per rod; the rods are then handed back as straight bonded
-  chains, their contacts' tangential and rolling springs starting from zero, and the
+  chains, their contacts' springs carried over or reset (``aggregation_springs``), and the
   compression to A follows on bonded rods (a speed lever of issue 20:
   :mod:`dem_taichi.protocol.rigid_ageing`). "rigid" on rigid rods is their own model;
   "bonded" needs bonded rods. With "rigid", the "clusters" thermostat is allowed on bonded rods.
@@ -92,6 +92,12 @@ without them runs (and writes its TOML and hash) as before.
   run in 0.31, but not the same material: K0 at C higher on every seed (+0.12 ± 0.16), λ* and
   the moduli exponent moved beyond the bonded cell's seed-to-seed spread. An option, not a
   default; no scene uses it.
+- ``aggregation_springs`` [unset = "kept"; "kept" | "reset"]: with ``aggregation_rod_model =
+  "rigid"`` on bonded rods, what the hand-over does with the gel's contacts. "kept": the
+  tangential and rolling springs of the twin's contacts are carried to the same disc pairs of
+  the bonded chains (the discs are numbered alike and sit where they sat, so each contact keeps
+  its geometry and its spring); "reset": they start from zero (what the measurements of
+  ``ageing_rigid_rods.md`` used, written there explicitly since this key). Used only there.
 
 Units: DEM units (d = 1, disc mass = 1); times in the scene's time unit. Every key's unit and a
 one-line description are in its metadata (``unit=``, ``doc=``), from which the documentation's
@@ -242,6 +248,18 @@ AGGREGATION_KEYS: dict[str, dict[str, Any]] = {
         ),
         "optional": True,
     },
+    "aggregation_springs": {
+        **_choices(
+            "kept",
+            "reset",
+            doc=(
+                "with aggregation_rod_model = 'rigid' on bonded rods: the contacts' tangential"
+                " and rolling springs at the hand-over, carried from the rigid twin (unset:"
+                " 'kept') or set to zero"
+            ),
+        ),
+        "optional": True,
+    },
 }
 
 
@@ -268,6 +286,7 @@ def check_aggregation_keys(keys: Mapping[str, Any]) -> None:
                 "aggregation_speed",
                 "aggregation_time_step_factor",
                 "aggregation_rod_model",
+                "aggregation_springs",
             )
             if keys[k] is not None
         ]

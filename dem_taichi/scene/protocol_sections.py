@@ -425,6 +425,9 @@ class ProtocolConfig(SceneSection):
     aggregation_rod_model: str | None = field(
         default=None, metadata=AGGREGATION_KEYS["aggregation_rod_model"]
     )
+    aggregation_springs: str | None = field(
+        default=None, metadata=AGGREGATION_KEYS["aggregation_springs"]
+    )
     pressure_tolerance_reduced: float | None = field(
         default=None,
         metadata={
@@ -497,6 +500,12 @@ class ProtocolConfig(SceneSection):
                 "[protocol] aggregation_rod_model = 'bonded' needs bonded rods; this scene's "
                 "[particles] rod_model = 'rigid': remove aggregation_rod_model or set "
                 "rod_model = 'bonded'"
+            )
+        if self.aggregation_springs is not None and not self.ages_rigid(scene):
+            raise SceneError(
+                f"[protocol] aggregation_springs = {self.aggregation_springs!r} is used only "
+                "when bonded rods age as rigid rods (rod_model = 'bonded', aggregation = time "
+                "| coordination, aggregation_rod_model = 'rigid'): remove aggregation_springs"
             )
         if (
             self.aggregation_thermostat == "clusters"

@@ -554,6 +554,14 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
          ["aggregation_rod_model", "rigid", "bonded"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_rod_model = "bonded"\n',
          ["aggregation_rod_model = 'bonded' needs bonded rods", "rod_model = 'rigid'"]),
+        ('aggregation_springs = "kept"\n',
+         ["aggregation_springs", "used only", "aggregation = 'none'"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_springs = "reset"\n',
+         ["[protocol] aggregation_springs = 'reset' is used only when bonded rods age as "
+          "rigid rods", "remove aggregation_springs"]),
+        ('aggregation = "time"\naggregation_time = 1.0\naggregation_rod_model = "rigid"\n'
+         'aggregation_springs = "half"\n',
+         ["aggregation_springs", "kept", "reset"]),
     ],
 )  # fmt: skip
 def test_bad_keys_are_refused_at_load_in_one_line_naming_the_key(text, words):

@@ -109,7 +109,7 @@ def test_rods_from_bodies_refuses_chains_of_another_length():
 def test_load_gas_puts_rigid_rods_into_a_bonded_simulation_as_straight_chains():
     """A rigid simulation's aged rods loaded into a bonded one (:meth:`Simulation.load_gas`):
     the same disc centres and contacts, straight bonds at rest, its step and time, the bonded
-    Δt and strain reference kept, the tangential springs at zero."""
+    Δt and strain reference kept, the tangential springs at zero ("reset")."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.rigid_ageing import hand_over
 
@@ -118,7 +118,8 @@ def test_load_gas_puts_rigid_rods_into_a_bonded_simulation_as_straight_chains():
     twin = rigid.sim
     sim = Simulation(bonded(scene))
     dt, reference = sim.time_step, sim.reference_lengths.copy()
-    found = hand_over(twin, sim)
+    found = hand_over(twin, sim, springs="reset")
+    assert found["handover_springs"] == "reset"
     np.testing.assert_allclose(
         sim.disc_positions() % sim.cell_lengths, twin.disc_positions() % twin.cell_lengths,
         atol=1e-12,
@@ -131,6 +132,61 @@ def test_load_gas_puts_rigid_rods_into_a_bonded_simulation_as_straight_chains():
     assert sim.time_step == dt and np.array_equal(sim.reference_lengths, reference)
     assert not np.any(sim.get_state()["tangential_spring"])
     np.testing.assert_allclose(sim.cell_lengths, twin.cell_lengths, rtol=1e-15)
+
+
+def springs_by_pair(state: dict) -> dict[tuple[int, int], tuple[float, float]]:
+    """(i, j) → (ξ, ψ) of every list entry of a state dict whose springs are not both zero."""
+    from dem_taichi.kernels.layout import IMAGE_CODES
+
+    out = {}
+    for i, count in enumerate(state["neighbour_count"]):
+        for k in range(count):
+            xi = float(state["tangential_spring"][i, k])
+            rolling = state["rolling_spring"]
+            psi = float(rolling[i, k]) if rolling.shape[0] > 1 else 0.0
+            if xi != 0.0 or psi != 0.0:
+                out[(i, int(state["neighbours"][i, k]) // IMAGE_CODES)] = (xi, psi)
+    return out
+
+
+def test_the_hand_over_keeps_every_contact_spring_on_its_disc_pair():
+    """With the springs kept (the default), each contact of the aged twin has, after the
+    hand-over, its tangential and rolling springs on the same disc pair of the bonded chains,
+    bit for bit, whatever image and list slot it sits in; and the first steps after it follow."""
+    from dem_taichi.engine.control import CellControl
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol.rigid_ageing import hand_over
+
+    scene = attractive_scene(**AGEING).replace(
+        contact={"rolling_stiffness": 2.0e3, "rolling_friction": 0.5}
+    )
+    rigid, _, _ = run_stage(scene)
+    twin = rigid.sim
+    before = springs_by_pair(twin.get_state())
+    assert len(before) >= 3  # the aged gel has loaded contacts ...
+    assert any(psi != 0.0 for _, psi in before.values())  # ... rolling springs among them
+    sim = Simulation(bonded(scene))
+    found = hand_over(twin, sim)
+    assert found["handover_springs"] == "kept"
+    after = springs_by_pair(sim.get_state())
+    assert after == before
+    assert found["handover_coordination_number"] == found["handover_coordination_number_rigid"]
+    sim.run(50, control=CellControl.fixed())  # the carried list is a working list
+
+
+def test_load_gas_refuses_contacts_of_another_size():
+    from dem_taichi.engine.simulation import Simulation
+
+    sim = Simulation(bonded(attractive_scene()))
+    state = sim.get_state()
+    gas = GasState(
+        sim.cell_lengths, sim.body_positions(), state["angle"], state["velocity"],
+        state["angular_velocity"],
+    )  # fmt: skip
+    lists = ("neighbour", "tangential", "rolling")
+    contacts = {k: v[:-1] for k, v in state.items() if k.startswith(lists)}
+    with pytest.raises(ValueError, match="contacts of .* discs do not fit this simulation"):
+        sim.load_gas(gas, 0, 0.0, contacts=contacts)
 
 
 def test_load_gas_refuses_a_gas_of_another_size():
