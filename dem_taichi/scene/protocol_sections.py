@@ -501,11 +501,13 @@ class ProtocolConfig(SceneSection):
                 "[particles] rod_model = 'rigid': remove aggregation_rod_model or set "
                 "rod_model = 'bonded'"
             )
-        if self.aggregation_springs is not None and not self.ages_rigid(scene):
+        if self.aggregation_springs is not None and self.aggregation_rod_model != "rigid":
+            # (on rigid rods, "rigid" is their own model and the key does nothing: the rigid
+            # twin of a bonded scene is such a scene)
             raise SceneError(
                 f"[protocol] aggregation_springs = {self.aggregation_springs!r} is used only "
-                "when bonded rods age as rigid rods (rod_model = 'bonded', aggregation = time "
-                "| coordination, aggregation_rod_model = 'rigid'): remove aggregation_springs"
+                "when bonded rods age as rigid rods (aggregation_rod_model = 'rigid'): remove "
+                "aggregation_springs or set aggregation_rod_model"
             )
         if (
             self.aggregation_thermostat == "clusters"

@@ -558,7 +558,7 @@ def test_defaults_leave_the_scene_toml_unchanged_and_keys_round_trip():
          ["aggregation_springs", "used only", "aggregation = 'none'"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_springs = "reset"\n',
          ["[protocol] aggregation_springs = 'reset' is used only when bonded rods age as "
-          "rigid rods", "remove aggregation_springs"]),
+          "rigid rods (aggregation_rod_model = 'rigid')", "remove aggregation_springs"]),
         ('aggregation = "time"\naggregation_time = 1.0\naggregation_rod_model = "rigid"\n'
          'aggregation_springs = "half"\n',
          ["aggregation_springs", "kept", "reset"]),

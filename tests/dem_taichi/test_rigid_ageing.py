@@ -242,15 +242,27 @@ def test_the_stage_ages_a_rigid_twin_at_its_time_step_with_the_thermostat_at_the
 
 
 def test_the_stage_with_a_rigid_twin_is_deterministic_and_reaches_a():
-    """Two runs of the stage on the rigid twin end in the same bonded state bit for bit; the
-    compression to A then runs on the bonded rods and finds A."""
+    """Two runs of the stage on the rigid twin end in the same bonded state bit for bit (the
+    springs kept, the key's default, given explicitly); the compression to A then runs on the
+    bonded rods and finds A. With the springs reset the stage ends with none loaded."""
     from dem_taichi.engine.state import states_equal
 
     scene = bonded(attractive_scene(**AGEING, aggregation_rod_model="rigid"))
+    kept = bonded(
+        attractive_scene(**AGEING, aggregation_rod_model="rigid", aggregation_springs="kept")
+    )
     first, details_1, _ = run_stage(scene)
-    second, details_2, _ = run_stage(scene)
+    second, details_2, _ = run_stage(kept)
     assert states_equal(first.sim.get_state(), second.sim.get_state())
-    assert details_1 == details_2
+    assert details_1 == details_2 and details_1["handover_springs"] == "kept"
+    assert np.any(first.sim.get_state()["tangential_spring"])
+    reset = bonded(
+        attractive_scene(**AGEING, aggregation_rod_model="rigid", aggregation_springs="reset")
+    )
+    third, details_3, _ = run_stage(reset)
+    assert details_3["handover_springs"] == "reset"
+    assert details_3["handover_coordination_number"] == details_1["handover_coordination_number"]
+    assert not np.any(third.sim.get_state()["tangential_spring"])
     state_a = first.compress_to_transition()
     assert state_a.label == "A" and state_a.measures["mean_stress"] > 0
     assert first.sim.bonded and first.aggregation_details is details_1
