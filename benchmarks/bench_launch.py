@@ -21,7 +21,6 @@ Usage::
 Writes benchmarks/results/launch_bench.csv (one row per case, microseconds per launch).
 """
 
-from __future__ import annotations
 
 import argparse
 import csv
@@ -112,7 +111,7 @@ def main() -> None:
     rows = [dict(row, threads=threads) for row in measure(args.repeats)]
     header = (
         f"# bench_launch.py: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Taichi {ti.__version__}, {threads} threads"
+        f"Taichi {'.'.join(map(str, ti.__version__))}, {threads} threads"
     )
     out = RESULTS / ("launch_bench.csv" if not args.threads else f"launch_bench_{threads}t.csv")
     with open(out, "w", newline="") as handle:

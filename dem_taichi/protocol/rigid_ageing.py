@@ -24,8 +24,10 @@ at every draw, so they bend only under contact and attraction forces.
 Measured (``benchmarks/results/ageing_rigid_rods.md``, the bonded study cell KB300 at 300 rods,
 three seeds): the ageing takes 0.14 of its bonded time and the isotropic run 0.31, but the
 material differs: K0 at C higher on every seed (+0.12 ± 0.16), λ* on the mapped window −0.013 ±
-0.044; Z at the end of the ageing −0.07 ± 0.09. A rigid-aged bonded run is a preparation of its
-own, not a cheaper way to the bonded one.
+0.044; Z at the end of the ageing −0.07 ± 0.09 (springs reset). With the springs kept, from the
+same gels (``ageing_rigid_springs.md``): λ* higher on every seed (+0.021 ± 0.024 against the
+reset), K0 at C scattered (0.47–0.77 against the bonded ageing's 0.54–0.59). A rigid-aged bonded
+run is a preparation of its own, not a cheaper way to the bonded one.
 
 Pure set-up and hand-over; the stage itself is :func:`dem_taichi.protocol.aggregation.aggregate`.
 """
