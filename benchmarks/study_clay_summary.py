@@ -89,8 +89,8 @@ the stiffness (E_v/p 83 ± 35). Aged as rigid rods (KBR300, `ageing_rigid_rods`)
 costs 0.31 of the time but is another material (K0 at C +0.12 ± 0.16, higher on every seed;
 C − B +0.78 ± 0.69); with the contacts' springs kept at the hand-over (KBRK300,
 `ageing_rigid_springs`, from the same gels) λ* rose on every seed (+0.021 ± 0.024, to 0.173) and
-K0 at C scattered (0.47–0.77): still not KB300's material. Stage 2 with bonded rods ran for that material on one seed
-(`study_clay_bonded_paper_size`, KBR1520, 77 min without radial paths): E_v/p at B 101, λ* 0.157,
+K0 at C scattered (0.47–0.77): still not KB300's material. Stage 2 with bonded rods ran for
+that material on one seed (`study_clay_bonded_paper_size`, KBR1520, 77 min without radial paths): E_v/p at B 101, λ* 0.157,
 C − B +0.62, K0 0.64, overlaps 1.3 % of d. KB300 itself at 1520 rods (about 2–3 h per seed) is
 not run. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
