@@ -90,9 +90,9 @@ costs 0.31 of the time but is another material (K0 at C +0.12 ± 0.16, higher on
 C − B +0.78 ± 0.69); with the contacts' springs kept at the hand-over (KBRK300,
 `ageing_rigid_springs`, from the same gels) λ* rose on every seed (+0.021 ± 0.024, to 0.173) and
 K0 at C scattered (0.47–0.77): still not KB300's material. Stage 2 with bonded rods ran for
-that material on one seed (`study_clay_bonded_paper_size`, KBR1520, 77 min without radial paths): E_v/p at B 101, λ* 0.157,
-C − B +0.62, K0 0.64, overlaps 1.3 % of d. KB300 itself at 1520 rods (about 2–3 h per seed) is
-not run. The TIV
+that material on one seed (`study_clay_bonded_paper_size`, KBR1520, 77 min without radial
+paths): E_v/p at B 101, λ* 0.157, C − B +0.62, K0 0.64, overlaps 1.3 % of d. KB300 itself at
+1520 rods (about 2–3 h per seed) is not run. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
