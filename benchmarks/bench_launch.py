@@ -21,7 +21,6 @@ Usage::
 Writes benchmarks/results/launch_bench.csv (one row per case, microseconds per launch).
 """
 
-
 import argparse
 import csv
 import os

@@ -31,6 +31,7 @@ from dem_taichi.kernels.common import T
 from dem_taichi.kernels.layout import (
     C_LX,
     C_LY,
+    F_FORCE_REBUILD,
     P_BOND_BREAK,
     P_BOND_GB,
     P_BOND_GN,
@@ -110,10 +111,14 @@ def bond_breaks(e_n, params: T):
 
 
 @ti.func
-def holding_bond(g, pos: T, angle: T, vel: T, omega: T, bond_intact: T, cell: T, params: T):
+def holding_bond(
+    g, pos: T, angle: T, vel: T, omega: T, bond_intact: T, cell: T, params: T, flags: T
+):
     """The bond g—g+1 if it holds: (1, F_hx, F_hy, τ_h, τ_g), else (0, 0, 0, 0, 0). A bond whose
-    tension exceeds F_b breaks here, for good (``bond_intact[g] = 0``), and adds nothing. The
-    caller checks that g has a bond (g % chain != chain − 1)."""
+    tension exceeds F_b breaks here, for good (``bond_intact[g] = 0``), adds nothing, and forces
+    a list rebuild before the next step's forces (an intact bond's discs are not listed,
+    :func:`dem_taichi.kernels.neighbours.rebuild_lists`; from the next step on they interact
+    like any other pair). The caller checks that g has a bond (g % chain != chain − 1)."""
     held = 0
     fx = 0.0
     fy = 0.0
@@ -125,6 +130,7 @@ def holding_bond(g, pos: T, angle: T, vel: T, omega: T, bond_intact: T, cell: T,
         )
         if bond_breaks(e_n, params):
             bond_intact[g] = 0
+            flags[F_FORCE_REBUILD] = 1
         else:
             held = 1
     return held, fx, fy, tau_h, tau_g
@@ -144,12 +150,13 @@ def add_bond_forces(
     bond_intact: T,
     cell: T,
     params: T,
+    flags: T,
 ):
     """Add the forces of the bond g—g+1 (if it exists and holds) to both bodies; break it when
     its tension exceeds F_b (then it adds nothing)."""
     if g % chain != chain - 1:
         held, fx, fy, tau_h, tau_g = holding_bond(
-            g, pos, angle, vel, omega, bond_intact, cell, params
+            g, pos, angle, vel, omega, bond_intact, cell, params, flags
         )
         if held == 1:
             h = g + 1
@@ -172,13 +179,13 @@ def add_bond_forces(
 @ti.func
 def gather_bond_forces(
     chain: T, b, pos: T, angle: T, vel: T, omega: T, force: T, torque: T, bond_intact: T,
-    cell: T, params: T,
+    cell: T, params: T, flags: T,
 ):  # fmt: skip
     """Add to body b only the forces of its two bonds (b−1—b and b—b+1): deterministic in
     parallel (each bond evaluated by both its bodies with the same arithmetic)."""
     if b % chain != 0:
         held, fx, fy, tau_h, tau_g = holding_bond(
-            b - 1, pos, angle, vel, omega, bond_intact, cell, params
+            b - 1, pos, angle, vel, omega, bond_intact, cell, params, flags
         )
         if held == 1:
             force[b, 0] = force[b, 0] + fx
@@ -186,7 +193,7 @@ def gather_bond_forces(
             torque[b] = torque[b] + tau_h
     if b % chain != chain - 1:
         held, fx, fy, tau_h, tau_g = holding_bond(
-            b, pos, angle, vel, omega, bond_intact, cell, params
+            b, pos, angle, vel, omega, bond_intact, cell, params, flags
         )
         if held == 1:
             force[b, 0] = force[b, 0] - fx

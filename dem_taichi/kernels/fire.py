@@ -242,7 +242,7 @@ def run_steps_fire(
                 rebuild_lists(
                     ns,
                     False,
-                    phys.rolling,
+                    phys,
                     pos,
                     angle,
                     ref_pos,
@@ -262,6 +262,7 @@ def run_steps_fire(
                     cell_start,
                     cell_items,
                     disc_cell,
+                    bond_intact,
                     cell,
                     params,
                     flags,
@@ -331,7 +332,7 @@ def run_steps_fire(
                     for b in range(n_rods):
                         add_bond_forces(
                             phys.chain, False, b, pos, angle, vel, omega, force, torque,
-                            bond_intact, cell, params,
+                            bond_intact, cell, params, flags,
                         )  # fmt: skip
                 cell[C_TIME] += params[P_DT]
                 flags[F_STEPS] += 1

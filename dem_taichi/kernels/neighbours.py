@@ -7,6 +7,7 @@ the rolling springs ψ) of the previous list are carried to the pairs that remai
 
 import taichi as ti
 
+from dem_taichi.kernels.bonds import is_bonded_pair
 from dem_taichi.kernels.common import T, place_rod_discs
 from dem_taichi.kernels.layout import (
     C_DISP,
@@ -35,7 +36,7 @@ from dem_taichi.kernels.layout import (
 def rebuild_lists(
     ns: T,
     full: T,
-    rolling: T,
+    phys: T,
     pos: T,
     angle: T,
     ref_pos: T,
@@ -55,12 +56,16 @@ def rebuild_lists(
     cell_start: T,
     cell_items: T,
     disc_cell: T,
+    bond_intact: T,
     cell: T,
     params: T,
     flags: T,
 ):
-    """Cell-list build of the half Verlet list; carries ξ (and, with ``rolling``, the rolling
-    spring ψ) of surviving pairs; flags overflow.
+    """Cell-list build of the half Verlet list; carries ξ (and, with ``phys.rolling``, the
+    rolling spring ψ) of surviving pairs; flags overflow. Bonded rods (``phys.bonded``): the two
+    discs of an intact bond are not listed (they never interact; a bond that breaks forces the
+    next build, :func:`dem_taichi.kernels.bonds.holding_bond`): one entry fewer per disc, the
+    forces bit for bit the same.
 
     The old list is moved to the ``old_*`` buffers once (``F_OLD_SAVED``) so that a build that
     overflowed can be repeated after the host grew the capacity, without losing any ξ.
@@ -77,7 +82,7 @@ def rebuild_lists(
             for k in range(c):
                 old_nbr[i, k] = nbr[i, k]
                 old_xi[i, k] = nbr_xi[i, k]
-                if ti.static(rolling):
+                if ti.static(phys.rolling):
                     old_psi[i, k] = nbr_psi[i, k]
         for r in range(n_rods):
             pos[r, 0] -= ti.floor(pos[r, 0])
@@ -134,6 +139,11 @@ def rebuild_lists(
                     accept = j > i
                     if ti.static(full):
                         accept = j != i
+                    if ti.static(phys.bonded):
+                        # an intact bond's two discs never interact (pairs.pair_interaction):
+                        # not listed; a bond that breaks forces a rebuild (bonds.holding_bond)
+                        if accept and is_bonded_pair(phys.chain, i, j, bond_intact) == 1:
+                            accept = False
                     if accept and j // ns != rod_i:
                         dx = xi_x - disc_x[j, 0]
                         dy = xi_y - disc_x[j, 1]
@@ -152,10 +162,10 @@ def rebuild_lists(
                                 for k in range(old_count[i]):
                                     if old_nbr[i, k] // IMAGE_CODES == j:
                                         xi_old = old_xi[i, k]
-                                        if ti.static(rolling):
+                                        if ti.static(phys.rolling):
                                             psi_old = old_psi[i, k]
                                 nbr_xi[i, count] = xi_old
-                                if ti.static(rolling):
+                                if ti.static(phys.rolling):
                                     nbr_psi[i, count] = psi_old
                             count += 1
         if count > capacity:

@@ -40,6 +40,7 @@ def rebuild_if_needed(
     cell_start: nd2,
     cell_items: nd1,
     disc_cell: nd1,
+    bond_intact: nd1,
     cell: nd1,
     params: nd1,
     flags: nd1,
@@ -53,7 +54,7 @@ def rebuild_if_needed(
                 rebuild_lists(
                     ns,
                     full,
-                    phys.rolling,
+                    phys,
                     pos,
                     angle,
                     ref_pos,
@@ -73,6 +74,7 @@ def rebuild_if_needed(
                     cell_start,
                     cell_items,
                     disc_cell,
+                    bond_intact,
                     cell,
                     params,
                     flags,
@@ -184,7 +186,7 @@ def forces_parallel(
             if flags[F_STOP] == 0:
                 add_bond_forces(
                     phys.chain, True, b, pos, angle, vel, omega, force, torque, bond_intact,
-                    cell, params,
+                    cell, params, flags,
                 )  # fmt: skip
     if count_step == 1 and flags[F_STOP] == 0:
         cell[C_TIME] += params[P_DT]
@@ -254,7 +256,7 @@ def forces_gather(
             if ti.static(phys.bonded):
                 gather_bond_forces(
                     phys.chain, r, pos, angle, vel, omega, force, torque, bond_intact, cell,
-                    params,
+                    params, flags,
                 )  # fmt: skip
     if flags[F_STOP] == 0:
         cell[C_TIME] += params[P_DT]

@@ -194,7 +194,7 @@ def run_steps_serial(
                 rebuild_lists(
                     ns,
                     False,
-                    phys.rolling,
+                    phys,
                     pos,
                     angle,
                     ref_pos,
@@ -214,6 +214,7 @@ def run_steps_serial(
                     cell_start,
                     cell_items,
                     disc_cell,
+                    bond_intact,
                     cell,
                     params,
                     flags,
@@ -275,7 +276,7 @@ def run_steps_serial(
                     for b in range(n_rods):
                         add_bond_forces(
                             phys.chain, False, b, pos, angle, vel, omega, force, torque,
-                            bond_intact, cell, params,
+                            bond_intact, cell, params, flags,
                         )  # fmt: skip
                 cell[C_TIME] += params[P_DT]
                 flags[F_STEPS] += 1
@@ -328,7 +329,7 @@ def prime_forces(
             rebuild_lists(
                 ns,
                 full,
-                phys.rolling,
+                phys,
                 pos,
                 angle,
                 ref_pos,
@@ -348,6 +349,7 @@ def prime_forces(
                 cell_start,
                 cell_items,
                 disc_cell,
+                bond_intact,
                 cell,
                 params,
                 flags,
@@ -387,5 +389,5 @@ def prime_forces(
                 for b in range(n_rods):
                     add_bond_forces(
                         phys.chain, False, b, pos, angle, vel, omega, force, torque,
-                        bond_intact, cell, params,
+                        bond_intact, cell, params, flags,
                     )  # fmt: skip

@@ -289,6 +289,35 @@ def test_a_bond_that_opens_beyond_its_strength_breaks_and_carries_nothing():
     assert held.measure()["bond_energy"] > 0.0
 
 
+def listed_partners(sim, disc: int) -> set[int]:
+    """The discs in ``disc``'s half neighbour list."""
+    from dem_taichi.kernels.layout import IMAGE_CODES
+
+    state = sim.get_state()
+    count = int(state["neighbour_count"][disc])
+    return {int(e) // IMAGE_CODES for e in state["neighbours"][disc, :count]}
+
+
+def test_an_intact_bond_is_not_listed_and_a_broken_one_is_at_the_next_step():
+    """The two discs of an intact bond never interact, so the list leaves them out; when the bond
+    breaks the list is rebuilt before the next step's forces, so from then on they are a pair
+    like any other (within the list radius at once: a bond breaks near its rest length)."""
+    scene = chain_scene(n_spheres=2, f_b=50.0)
+    x, theta = straight(2)
+    v = np.array([[-2.0, 0.0], [2.0, 0.0]])
+    sim = free_chain(scene, x, theta, v)
+    assert 1 not in listed_partners(sim, 0)
+    for _ in range(400):
+        sim.run(1)
+        if sim.n_broken_bonds:
+            break
+    assert sim.n_broken_bonds == 1
+    gap = np.linalg.norm(np.diff(sim.get_state()["reduced_position"] * sim.cell_lengths, axis=0))
+    assert gap < sim.list_radius
+    sim.run(1)
+    assert 1 in listed_partners(sim, 0)
+
+
 def test_bonded_checkpoint_resumes_bit_for_bit(tmp_path):
     scene = chain_scene(n_rods=40, zeta=0.2, gamma_n=30.0, friction="true", long_range="true",
                         f_b=200.0)  # fmt: skip
