@@ -161,10 +161,12 @@ class SimulationState:
                           ("nbr_psi", "rolling_spring")):  # fmt: skip
             target = np.zeros(a[name].shape, dtype=np.int32 if name == "nbr" else self._real)
             source = np.asarray(contacts[key])
-            if key == "rolling_spring" and source.shape[0] != target.shape[0]:
-                continue  # rolling springs where only one of the two has rolling resistance
-            rows = min(source.shape[0], target.shape[0])
-            target[:rows, :width] = source[:rows, :width]
+            if source.shape[0] != target.shape[0]:
+                raise ValueError(
+                    f"contacts' {key} has {source.shape[0]} rows, this simulation's "
+                    f"{target.shape[0]}: rolling resistance on in one scene and off in the other"
+                )
+            target[:, :width] = source[:, :width]
             a[name].from_numpy(target)
         a["nbr_count"].from_numpy(count)
 

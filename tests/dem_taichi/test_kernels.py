@@ -69,3 +69,15 @@ def test_every_interacting_pair_is_listed_during_a_strained_run(scene):
             checked += len(within)
     assert checked > 500
     assert sim.get_state()["flags"][layout.F_REBUILDS] > 5
+
+
+def test_a_one_disc_body_has_its_disc_at_its_centre():
+    """The kernels place a one-disc body's disc without its axis (``kernels.common.rod_axis``
+    returns (1, 0) for ``ns`` = 1), which is exact only because that disc's offset is 0: for
+    a rigid rod of one disc and for every bonded rod's disc."""
+    from dem_taichi.physics.forcelaw import disc_offsets
+
+    for spacing in (0.5, 1.0, 1.7):
+        assert np.array_equal(disc_offsets(1, spacing), np.zeros(1))
+    sim = Simulation(load_scene("smoke_bonded"))
+    assert sim.body.n_spheres == 1 and np.array_equal(sim.body.offsets, np.zeros(1))
