@@ -4,7 +4,8 @@ Usage::
 
     python benchmarks/paired_paths.py --scene paper --seed 3 \\
         --variant base= --variant safety1=protocol.inertial_number_safety=1.0 \\
-        [--set section.key=value ...] [--branches isotropic,k0] [--workers 2] --out FILE.json
+        [--set section.key=value ...] [--branches isotropic,k0] [--workers 2] [--pool] \\
+        --out FILE.json
     python benchmarks/paired_paths.py --from-run RUN_DIR \\
         --variant "k0=protocol.run_k0=true;protocol.run_unloading=true" --branches k0 \\
         --out FILE.json
@@ -14,7 +15,8 @@ process, and probed there; then, for each variant (``NAME=key=value;key=value``,
 the scene as given), the branches from A (A→B; A→C with C→B; each radial path, or those of
 ``--branches``) run in ``--workers`` processes from a checkpoint of A, with the variant's
 ``[protocol]``/``[probing]`` settings (the engine is the scene's: a variant may change only
-those two sections, so every variant starts from the bitwise same A). Writes, per variant: the
+those two sections, and ``integration.dt_safety``, whose branches then run at the scaled Δt, so
+every variant starts from the bitwise same A). Writes, per variant: the
 wall time of its branches, the steps and the work ledger (:mod:`dem_taichi.engine.work_profile`) per
 stage, and the findings: those a run folder gives (λ*, the moduli exponent and E_v/p at B along
 A→B; K0 = σ_xx/σ_yy at C; fabric and E_h/E_v along the paths; the mapped window...) and, at
@@ -52,12 +54,16 @@ if TYPE_CHECKING:
     from dem_taichi.protocol.records import RunLog
 
 VARIANT_SECTIONS = ("protocol", "probing")
+#: engine keys a variant may change as well: the branches then integrate with the variant's Δt
+#: (the checkpoint's Δt × the ratio of dt_safety), from the bitwise same A
+VARIANT_KEYS = ("integration.dt_safety",)
 #: the stages before A (run once per seed, shared by every variant)
 BEFORE_A = ("aggregation", "isotropic_to_A")
 
 
-def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLog, float]:
-    """Run one branch from the checkpoint of A with the variant's settings (a worker)."""
+def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLog, float, float]:
+    """Run one branch from the checkpoint of A with the variant's settings (a worker); returns
+    its label, log, seconds and the Δt it integrated with."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.branches import run_branch_on
     from dem_taichi.protocol.paths import ProtocolRunner
@@ -70,6 +76,9 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     start = time.perf_counter()
     sim = Simulation.from_checkpoint(checkpoint)
     scene = scene_from_toml(toml)
+    prepared = sim.scene.integration.dt_safety  # the scene that reached A
+    if scene.integration.dt_safety != prepared:  # a time-step variant (VARIANT_KEYS)
+        sim.set_parameters(time_step=sim.time_step * scene.integration.dt_safety / prepared)
     config, probing = protocol_settings(scene), probing_settings(scene)
     log = RunLog()
     recorder = ProbeRecorder(probing, config, log)
@@ -78,7 +87,7 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     log.states["A"] = state_a
     run_branch_on(runner, Branch.parse(label))
     del log.states["A"]
-    return label, log, time.perf_counter() - start
+    return label, log, time.perf_counter() - start, sim.time_step
 
 
 def _findings(result, particles) -> dict:
@@ -132,6 +141,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--from-run", type=Path, default=None, help="take A from this run")
     parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument(
+        "--pool", action="store_true",
+        help="run every variant's branches in one pool of --workers processes (the cores stay "
+        "busy; per-variant wall time is then not measured, only each branch's seconds)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.from_run is None and args.seed is None:
         parser.error("--seed is required (or --from-run)")
@@ -153,8 +167,11 @@ def main(argv: list[str] | None = None) -> int:
         name, _, settings = item.partition("=")
         keys = [s for s in settings.split(";") if s]
         for key in keys:
-            if key.split(".", 1)[0] not in VARIANT_SECTIONS:
-                raise SystemExit(f"variant {name}: {key}: only {VARIANT_SECTIONS} may change")
+            path = key.split("=", 1)[0].strip()
+            if path.split(".", 1)[0] not in VARIANT_SECTIONS and path not in VARIANT_KEYS:
+                raise SystemExit(
+                    f"variant {name}: {key}: only {VARIANT_SECTIONS} and {VARIANT_KEYS} may change"
+                )
         variants[name] = keys
     args.out.parent.mkdir(parents=True, exist_ok=True)
     if args.from_run is not None:
@@ -186,20 +203,40 @@ def main(argv: list[str] | None = None) -> int:
               "seconds_to_A": seconds_a, "steps_to_A": log.stages["isotropic_to_A"].steps,
               "variants": {}}  # fmt: skip
     context = get_context("spawn")
+    plans = {}
     for name, keys in variants.items():
         scene = scene_with_overrides(base, keys)
         branches = branch_names(protocol_settings(scene))
         if args.branches:
             keep = set(args.branches.split(","))
             branches = [b for b in branches if b.kind in keep]
-        toml = scene_to_toml(scene)
+        plans[name] = (keys, scene, branches, scene_to_toml(scene))
+    pooled: dict[tuple[str, str], tuple] = {}
+    if args.pool:  # every variant's branches in one pool, the K0 branches (the longest) first
+        jobs = [(name, b) for name, plan in plans.items() for b in plan[2]]
+        jobs.sort(key=lambda job: job[1].kind != "k0")
         t0 = time.perf_counter()
         with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
-            futures = [
-                pool.submit(_branch, str(checkpoint), toml, b.label, state_a) for b in branches
+            submitted = [
+                (name, pool.submit(_branch, str(checkpoint), plans[name][3], b.label, state_a))
+                for name, b in jobs
             ]
-            outcomes = [f.result() for f in futures]
-        wall = time.perf_counter() - t0
+            for name, future in submitted:
+                outcome = future.result()
+                pooled[(name, outcome[0])] = outcome
+        print(f"[seed {args.seed}] all variants: {time.perf_counter() - t0:.0f} s", flush=True)
+    for name, (keys, scene, branches, toml) in plans.items():
+        if args.pool:
+            outcomes = [pooled[(name, b.label)] for b in branches]  # the branches' own order
+            wall = None  # the pool's wall is shared by the variants
+        else:
+            t0 = time.perf_counter()
+            with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
+                futures = [
+                    pool.submit(_branch, str(checkpoint), toml, b.label, state_a) for b in branches
+                ]
+                outcomes = [f.result() for f in futures]
+            wall = time.perf_counter() - t0
         merged = RunLog()
         merged.stages = {k: v for k, v in log.stages.items()}
         merged.states = {"A": state_a}
@@ -207,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         merged.probes = list(log.probes)
         merge_work(merged.work, log.work)  # a copy: the stage to A's ledger
         branch_seconds = {}
-        for label, branch_log, seconds in outcomes:
+        for label, branch_log, seconds, _ in outcomes:
             merged.merge(branch_log)
             branch_seconds[label] = seconds
         result = ProtocolResult(
@@ -219,12 +256,16 @@ def main(argv: list[str] | None = None) -> int:
             "settings": keys,
             "branches_wall_seconds": wall,
             "branch_seconds": branch_seconds,
+            "branch_process_seconds": sum(branch_seconds.values()),
+            "time_step": sorted({o[3] for o in outcomes}),
             "steps": {k: v.steps for k, v in merged.stages.items()},
             "max_inertial_number": {k: v.max_inertial_number for k, v in merged.stages.items()},
             "work": merged.work,
             "findings": _findings(result, scene.particles),
         }
-        print(f"[seed {args.seed}] {name}: branches {wall:.0f} s, steps "
+        process_seconds = sum(branch_seconds.values())
+        shown = f"{wall:.0f} s" if wall is not None else f"{process_seconds:.0f} process-s"
+        print(f"[seed {args.seed}] {name}: branches {shown}, steps "
               f"{sum(v.steps for k, v in merged.stages.items() if k not in BEFORE_A):,}",
               flush=True)  # fmt: skip
         args.out.write_text(json.dumps(jsonable(report), indent=1))

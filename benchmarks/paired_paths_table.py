@@ -75,6 +75,15 @@ def _value(seed: dict, variant: str, key: str) -> float:
     return math.nan if value is None else float(value)
 
 
+def _seconds(seed: dict, name: str) -> float:
+    """A variant's seconds for its branches: their wall time, or, where the variants shared one
+    pool (``paired_paths.py --pool``), the sum of the branches' process seconds."""
+    entry = seed["variants"][name]
+    if entry.get("branches_wall_seconds") is not None:
+        return entry["branches_wall_seconds"]
+    return entry["branch_process_seconds"]
+
+
 def _steps(seed: dict, variant: str) -> int:
     steps = seed["variants"][variant]["steps"]
     return int(sum(v for k, v in steps.items() if k not in BEFORE_A))
@@ -101,14 +110,15 @@ def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
         "",
         "### Speed (branches from A)",
         "",
-        "| variant | settings | wall (s) per seed | steps per seed | wall / base: mean ± 95 % | "
+        "| variant | settings | wall (s) per seed (process seconds with `--pool`) | "
+        "steps per seed | wall / base: mean ± 95 % | "
         "steps / base: mean ± 95 % |",
         "|---|---|---|---|---|---|",
     ]
     for name in [base, *variants]:
-        walls = [s["variants"][name]["branches_wall_seconds"] for s in seeds]
+        walls = [_seconds(s, name) for s in seeds]
         steps = [_steps(s, name) for s in seeds]
-        wall_ratio = interval([w / s["variants"][base]["branches_wall_seconds"]
+        wall_ratio = interval([w / _seconds(s, base)
                                for w, s in zip(walls, seeds, strict=True)])  # fmt: skip
         step_ratio = interval([n / _steps(s, base) for n, s in zip(steps, seeds, strict=True)])
         settings = "; ".join(seeds[0]["variants"][name]["settings"]) or "(the scene's)"

@@ -830,3 +830,36 @@ def test_paired_paths_from_a_run_gives_its_branches_bit_for_bit(run, tmp_path):
     assert "B" not in {k.split("@")[1] for k in findings if "@" in k}  # A→B not run
     with pytest.raises(SystemExit):
         module.main([*argv, "--seed", "3", "--out", str(out)])
+
+
+# a benchmark tool's check (~40-60 s: spawned branch processes), run by `make test-slow`
+@pytest.mark.slow
+def test_paired_paths_pooled_variants_give_their_own_branches(run, tmp_path):
+    """``paired_paths.py --pool``: two variants' branches share one pool, K0 first; each variant
+    gets its own branches back (the base's B, C and B′ are the run's bit for bit), a variant's
+    seconds are its branches' process seconds, and a time-step variant
+    (``integration.dt_safety``, the smoke scene's 0.15 doubled) runs its branches from the same A
+    at twice the run's Δt; an engine key outside VARIANT_KEYS is refused."""
+    import json
+
+    module = _benchmark_module("paired_paths")
+    out = tmp_path / "pooled.json"
+    argv = ["--from-run", str(run.out_dir), "--branches", "k0,isotropic", "--pool",
+            "--variant", "base=", "--variant", "dt2=integration.dt_safety=0.3",
+            "--workers", "2"]  # fmt: skip
+    assert module.main([*argv, "--out", str(out)]) == 0
+    variants = json.loads(out.read_text())["variants"]
+    base, dt2 = variants["base"], variants["dt2"]
+    for label in ("B", "C", "B'"):
+        m = run.states[label].measures
+        for key in ("mean_stress", "specific_volume", "fabric_deviator"):
+            assert base["findings"][f"{key}@{label}"] == m[key], (label, key)
+    assert base["steps"]["A_to_C"] == run.stages["A_to_C"].steps
+    assert len(base["time_step"]) == len(dt2["time_step"]) == 1
+    assert dt2["time_step"][0] == pytest.approx(2.0 * base["time_step"][0], rel=1e-12)
+    assert dt2["steps"]["A_to_C"] != base["steps"]["A_to_C"]
+    for entry in (base, dt2):
+        assert entry["branches_wall_seconds"] is None
+        assert entry["branch_process_seconds"] == sum(entry["branch_seconds"].values()) > 0
+    with pytest.raises(SystemExit, match="may change"):
+        module.main([*argv[:-4], "--variant", "k=contact.k_n=1", "--out", str(out)])
