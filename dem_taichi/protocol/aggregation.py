@@ -23,7 +23,11 @@ from dem_taichi.protocol.records import ProtocolError
 from dem_taichi.protocol.rigid_ageing import hand_over, rigid_twin
 from dem_taichi.protocol.rod_thermostat import rod_speed
 
-__all__ = ["aggregate"]
+__all__ = ["AGEING_SAVE_SECONDS", "aggregate"]
+
+#: wall seconds between two saves of the ageing's progress (``resume/ageing.npz``, when the
+#: runner has a ``save_point``: a protocol run with a run folder)
+AGEING_SAVE_SECONDS = 600.0
 
 
 def aggregate(runner) -> dict:
@@ -55,12 +59,23 @@ def aggregate(runner) -> dict:
 
     History records at the scene's ``[output] every`` (and the end of the stage), stage
     label "aggregation". Deterministic: the same scene gives the same state bit for bit.
+
+    Resumable: with ``runner.save_point`` set (a protocol run with a run folder), the progress
+    of the ageing is saved about every :data:`AGEING_SAVE_SECONDS` of wall time (after a
+    check's thermostat draw; not on a rigid twin) and once the stage is done
+    (:mod:`dem_taichi.protocol.resume`, ``ageing.npz``); a run resumed from a save inside the
+    ageing (``runner.resume_ageing``, its ``progress``) goes on from that check, and ends
+    with the state and records of the run never interrupted (the thermostats' draws are seeded
+    by the step).
     """
     c = runner.config
     sim = runner.sim
     stage = "aggregation"
     if not c.aggregates:
         raise ProtocolError("[protocol] aggregation = 'none': there is no aggregation stage")
+    resumed, runner.resume_ageing = runner.resume_ageing, None
+    if resumed is not None:
+        return _resume_ageing(runner, resumed)
     t0 = time.perf_counter()
     record = runner._record(stage)
     every = sim.scene.output.every
@@ -105,23 +120,54 @@ def aggregate(runner) -> dict:
     details["area_fraction"] = 1.0 / measures["specific_volume"]
     details["coordination_number_compressed"] = measures["coordination_number"]
     # 2. ageing at fixed cell, at factor × the scene's Δt (restored after it, also on error)
+    return _age_at_factor(runner, sim, twin, record, progress, measures, details, t0, None)
+
+
+def _resume_ageing(runner, resumed: dict) -> dict:
+    """:func:`aggregate` from a save inside its ageing (``progress`` of ``ageing.npz``): the
+    runner's simulation, log and records are already those of the save."""
+    sim = runner.sim
+    t0 = time.perf_counter() - float(resumed["stage_seconds"])
+    record = runner._record("aggregation")
+    progress = runner._begin_stage("aggregation", None)
+    runner._since_output = int(resumed["since_output"])
+    details = dict(resumed["details"])
+    start = (int(resumed["done"]), int(resumed["check"]))
+    measures = sim.measure()
+    return _age_at_factor(runner, sim, None, record, progress, measures, details, t0, start)
+
+
+def _age_at_factor(runner, sim, twin, record, progress, measures, details, t0, start) -> dict:
+    """Step 2 of :func:`aggregate` at ``aggregation_time_step_factor`` × the scene's Δt (restored
+    after it, also on error), then the hand-over from a rigid twin; ``start`` (done, check)
+    where a resumed ageing goes on, None from its beginning."""
+    c = runner.config
     factor = c.aggregation_time_step_factor or 1.0
     base_dt = sim.time_step
     if factor != 1.0:
         sim.set_parameters(time_step=base_dt * factor)
         details["time_step_factor"] = factor
+    save = runner.save_point if twin is None else None
     try:
-        _age(runner, c, sim, stage, record, progress, measures, details, t0)
+        _age(runner, c, sim, "aggregation", record, progress, measures, details, t0, start, save)
     finally:
         if factor != 1.0:
             sim.set_parameters(time_step=base_dt)
     if twin is not None:
         details.update(hand_over(twin, runner.sim, c.aggregation_springs or "kept"))
+    if runner.save_point is not None:  # the stage done: a resume skips it
+        runner.save_point(
+            {"phase": "aged", "done": int(details["aging_steps"]), "check": -1,
+             "details": details, "since_output": runner._since_output,
+             "stage_seconds": record.seconds}
+        )  # fmt: skip
     return details
 
 
-def _age(runner, c, sim, stage, record, progress, measures, details, t0) -> dict:
-    """Step 2 of :func:`aggregate`: the ageing at fixed cell, at the time step set."""
+def _age(runner, c, sim, stage, record, progress, measures, details, t0, start, save) -> dict:
+    """Step 2 of :func:`aggregate`: the ageing at fixed cell, at the time step set; from its
+    beginning (``start`` None) or from (done, check) of a save; ``save(progress)`` called about
+    every :data:`AGEING_SAVE_SECONDS` after a check's thermostat draw (None: no saves)."""
     dt = sim.time_step
     # the thermostat's check interval kept in time (the scene's relax_check_steps at its Δt; a
     # rigid twin's Δt is time_step_ratio times the bonded scene's)
@@ -153,9 +199,13 @@ def _age(runner, c, sim, stage, record, progress, measures, details, t0) -> dict
         else:
             resample_speed(sim, speed, seed)
 
-    thermostat()
-    runner._since_output = 0
-    done, check = 0, 0
+    if start is None:
+        thermostat()
+        runner._since_output = 0
+        done, check = 0, 0
+    else:  # resumed after a check's draw: the state is the one saved then
+        done, check = start
+    last_save = time.perf_counter()
     z = measures["coordination_number"]
     reached = target_z is not None and z >= target_z  # by the compression already
     while not reached and done < total:
@@ -177,6 +227,13 @@ def _age(runner, c, sim, stage, record, progress, measures, details, t0) -> dict
             )
         if not reached and done < total:
             thermostat()
+            if save is not None and time.perf_counter() - last_save >= AGEING_SAVE_SECONDS:
+                save(
+                    {"phase": "ageing", "done": done, "check": check, "details": details,
+                     "since_output": runner._since_output,
+                     "stage_seconds": time.perf_counter() - t0}
+                )  # fmt: skip
+                last_save = time.perf_counter()
     met = reached or target_z is None
     if runner.history is not None and runner._since_output > 0:
         runner.history.append(measures)  # the end of the stage

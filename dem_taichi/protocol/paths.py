@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -131,6 +132,10 @@ class ProtocolRunner:
         self.state_A: dict | None = None
         self.state_C: dict | None = None
         self.aggregation_details: dict | None = None
+        # resumable ageing (dem_taichi.protocol.aggregation): save_point(progress) writes the
+        # run's resume point inside the stage; resume_ageing, the progress of a save to go on from
+        self.save_point: Callable[[dict], None] | None = None
+        self.resume_ageing: dict | None = None
         self._since_output = 0
         self.out_dir: Path | None = None
         self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)

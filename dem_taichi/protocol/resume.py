@@ -7,6 +7,12 @@ from A (:mod:`dem_taichi.protocol.branches`: A→B; A→C with C→B; each radia
 - ``A.npz`` once state A is reached: the history and relaxed-state records written so far,
   the run's log at A (:class:`dem_taichi.protocol.records.RunLog`, with the probes at A), the
   engine state at A and the wall time so far;
+- ``ageing.npz`` while the aggregation (gas-ageing) stage runs, when the scene has one: the same
+  as ``A.npz`` (records, log, engine state, wall time) and where the stage stood (``phase``
+  "ageing": the checks done, rewritten about every ``AGEING_SAVE_SECONDS`` of wall time; "aged":
+  the stage finished, before the compression to A), so that a long ageing resumes where it was
+  (:mod:`dem_taichi.protocol.aggregation`); an ageing on a rigid twin
+  (``aggregation_rod_model = "rigid"``) is saved only once aged;
 - ``branch_<k>.npz`` when the k-th branch has finished: its
   :class:`dem_taichi.protocol.records.BranchOutcome` (history records and log), written by the
   process that ran it.
@@ -17,7 +23,10 @@ run_directory.reopen_run`), writes the history files again from the saved record
 only the branches without a saved outcome, from the saved state A. The serial engine is
 deterministic, so the resumed run's outputs equal those of a run never interrupted (tested
 bitwise on the smoke protocol). The work lost by an interruption is at most the branches that
-were running; a run stopped before A starts again from the gas. SIGINT/SIGTERM stop the run
+were running; a run stopped before A starts again from the gas, or from its last ageing save
+(``ageing.npz``: the thermostat's draws are seeded by the step, so the resumed ageing draws what
+the uninterrupted one drew, and the outputs are again bit for bit those of a run never
+interrupted). SIGINT/SIGTERM stop the run
 with one line saying how to resume (exit code 130/143).
 
 What a resume trusts and checks. The files are data only: a checkpoint-format ``.npz``
@@ -62,8 +71,12 @@ __all__ = [
     "ResumeFileError",
     "RunIdentity",
     "StageA",
+    "AgeingPoint",
     "RecordingWriter",
     "stage_a_file",
+    "ageing_file",
+    "save_ageing",
+    "load_ageing",
     "branch_file",
     "refuse_pickles",
     "save_stage_a",
@@ -115,6 +128,22 @@ class StageA:
     seconds: float
 
 
+@dataclass(frozen=True)
+class AgeingPoint:
+    """What a resume needs from the run inside the aggregation stage (``ageing.npz``): the
+    fields of :class:`StageA` up to now, and ``progress``, where the stage stood (a dict of
+    numbers, strings and the stage's details: ``phase`` "ageing" or "aged", ``done`` the ageing
+    steps and ``check`` the checks done, ``details`` the stage's details so far,
+    ``since_output`` the history cadence's count, ``stage_seconds`` the stage's wall time)."""
+
+    history: list[dict]
+    relaxed: list[dict]
+    log: Any  # RunLog
+    state: dict[str, np.ndarray]  # Simulation.get_state() of the protocol's simulation
+    seconds: float
+    progress: dict
+
+
 class RecordingWriter:
     """Writes through to a history writer and keeps a copy of every record (for ``A.npz``)."""
 
@@ -134,6 +163,11 @@ class RecordingWriter:
 def stage_a_file(out_dir: str | Path) -> Path:
     """``<run>/resume/A.npz``."""
     return Path(out_dir) / RESUME_DIR / "A.npz"
+
+
+def ageing_file(out_dir: str | Path) -> Path:
+    """``<run>/resume/ageing.npz``."""
+    return Path(out_dir) / RESUME_DIR / "ageing.npz"
 
 
 def branch_file(out_dir: str | Path, index: int) -> Path:
@@ -281,6 +315,47 @@ def load_stage_a(run: RunIdentity) -> StageA | None:
     return StageA(**values)
 
 
+# -- inside the aggregation stage -----------------------------------------------------------
+_AGEING_FIELDS = tuple(f.name for f in dataclasses.fields(AgeingPoint))
+_REMEDY_AGEING = (
+    "delete it and resume again (the run then starts again from the gas), or start again with "
+    "--overwrite"
+)
+
+
+def save_ageing(run: RunIdentity, point: AgeingPoint) -> Path:
+    """Write (replace) ``resume/ageing.npz`` of ``run``."""
+    saved = dataclasses.replace(point, log=_log_relative(point.log, run.path))
+    return _save(ageing_file(run.path), _header(run, "ageing"), {
+        f: getattr(saved, f) for f in _AGEING_FIELDS
+    })  # fmt: skip
+
+
+def load_ageing(run: RunIdentity) -> AgeingPoint | None:
+    """The last saved point inside the aggregation stage of ``run``, None when there is none;
+    refuses (:class:`ResumeFileError`) a file that is damaged or not this run's."""
+    path = ageing_file(run.path)
+    if not path.exists():
+        return None
+    values = _load(path, run, "ageing", _REMEDY_AGEING)
+    from dem_taichi.protocol.records import RunLog
+
+    kinds = {"history": list, "relaxed": list, "log": RunLog, "state": dict, "seconds": float,
+             "progress": dict}  # fmt: skip
+    if not (isinstance(values, dict) and set(values) == set(kinds)):
+        raise _refusal(path, "damaged: not the fields of an ageing save", _REMEDY_AGEING)
+    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
+    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
+        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_AGEING)
+    progress = values["progress"]
+    if progress.get("phase") not in ("ageing", "aged") or not isinstance(
+        progress.get("details"), dict
+    ):
+        raise _refusal(path, "damaged: no phase or details of the ageing", _REMEDY_AGEING)
+    values["log"] = _log_absolute(values["log"], run.path, path)
+    return AgeingPoint(**values)
+
+
 # -- branches -------------------------------------------------------------------------------
 _REMEDY_BRANCH = "delete it and resume again (the branch is run again)"
 
@@ -320,6 +395,8 @@ def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, 
 def saved_summary(out_dir: str | Path, branches: Sequence[Branch]) -> str:
     """What a resume of the run in ``out_dir`` would start from, in words."""
     if not stage_a_file(out_dir).exists():
+        if ageing_file(out_dir).exists():
+            return "state A was not reached (a resume continues the aggregation stage's last save)"
         return "state A was not reached (a resume starts again from the gas)"
     done = [b for i, b in enumerate(branches) if branch_file(out_dir, i).exists()]
     return f"state A and {len(done)} of {len(branches)} branches from A are saved"

@@ -73,12 +73,15 @@ from dem_taichi.protocol.records import (
     _jsonable,
 )
 from dem_taichi.protocol.resume import (
+    AgeingPoint,
     RecordingWriter,
     RunIdentity,
     StageA,
+    load_ageing,
     load_branches,
     load_stage_a,
     refuse_pickles,
+    save_ageing,
     save_stage_a,
     saved_summary,
 )
@@ -193,9 +196,10 @@ def run_protocol(
             identity = RunIdentity.of(run_dir)
             saved_a = load_stage_a(identity)
             done = load_branches(identity, branch_names(config)) if saved_a is not None else {}
+            saved_ageing = load_ageing(identity) if saved_a is None else None
         else:
             identity = RunIdentity.of(run_dir)
-            saved_a, done = None, {}
+            saved_a, done, saved_ageing = None, {}, None
         out = run_dir.path
         effective_pattern = scene.long_range.pattern if scene.long_range.enabled else "neutral"
         log = RunLog()  # the one log of the run: the runner and the probe recorder write it
@@ -250,8 +254,28 @@ def run_protocol(
         branches = branch_names(config)
         try:
             if saved_a is None:
-                recording.append(sim.measure() | {"stage": "gas"})
+                if saved_ageing is None:
+                    recording.append(sim.measure() | {"stage": "gas"})
+                else:
+                    start -= saved_ageing.seconds  # the wall time counts the run's time so far
+                    _restore_ageing(runner, saved_ageing, recording, recording_relaxed)
+
+                def save_point(progress: dict) -> None:  # inside the aggregation stage
+                    save_ageing(
+                        identity,
+                        AgeingPoint(
+                            recording.records,
+                            recording_relaxed.records,
+                            log,
+                            runner.sim.get_state(),
+                            time.perf_counter() - start,
+                            progress,
+                        ),
+                    )
+
+                runner.save_point = save_point
                 runner.compress_to_transition()
+                runner.save_point = None
                 assert runner.state_A is not None  # compress_to_transition ends at A
                 save_stage_a(
                     identity,
@@ -333,6 +357,31 @@ def run_protocol(
         (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_jsonable))
         result.files["summary"] = str(out / "summary.json")
         return result
+
+
+def _restore_ageing(runner: ProtocolRunner, saved: AgeingPoint, history, relaxed) -> None:
+    """Put a resumed run where it was at its last save inside the aggregation stage: the
+    records so far written again (through the recording writers, so that later saves hold
+    them), the run's log, the engine's state, and where the stage stood (aged: the stage is
+    skipped; ageing: it goes on from that check, :func:`dem_taichi.protocol.aggregation.
+    aggregate`)."""
+    for record in saved.history:
+        history.append(record)
+    for record in saved.relaxed:
+        relaxed.append(record)
+    for f in dataclasses.fields(saved.log):
+        setattr(runner.log, f.name, getattr(saved.log, f.name))
+    runner.sim.work = runner.log.work
+    runner.sim.set_state(saved.state)
+    progress = saved.progress
+    if progress["phase"] == "aged":
+        runner.aggregation_details = dict(progress["details"])
+        runner._since_output = int(progress["since_output"])
+        where = "after the aggregation stage"
+    else:
+        runner.resume_ageing = dict(progress)
+        where = f"inside the aggregation stage, at check {int(progress['check'])}"
+    runner._say(f"[resume] from the save {where} (state A was not reached)")
 
 
 def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) -> None:

@@ -434,8 +434,9 @@ def test_protocol_records_the_aggregation_stage(full_run):
 
 
 def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run, tmp_path):
-    """Stopped (as Ctrl-C would) at the third check of the ageing: nothing is saved, the
-    resume starts again from the gas and ends with the uninterrupted run's outputs."""
+    """Stopped (as Ctrl-C would) at the third check of the ageing, before its first save (every
+    AGEING_SAVE_SECONDS of wall time): nothing is saved, the resume starts again from the gas and
+    ends with the uninterrupted run's outputs."""
     # where the stage calls hold, rescale_speed
     import dem_taichi.protocol.aggregation as stage_module
     from dem_taichi.protocol.runner import run_protocol
@@ -460,6 +461,96 @@ def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run,
     resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
     _release_runs()
     _assert_same_outputs(resumed, full_run)
+    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+
+
+def _count_holds(stage_module, stop_at: int | None = None):
+    """Patch the stage's ``hold`` to count its calls (and raise KeyboardInterrupt at call
+    ``stop_at``, as Ctrl-C would); returns the list of calls and the original."""
+    original = stage_module.hold
+    calls: list[int] = []
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        if stop_at is not None and len(calls) == stop_at:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    stage_module.hold = counted
+    return calls, original
+
+
+def test_run_interrupted_inside_the_ageing_resumes_from_its_last_save(
+    full_run, tmp_path, monkeypatch
+):
+    """With a save after every check's draw (AGEING_SAVE_SECONDS = 0), a run stopped at the
+    third check of the ageing has ``resume/ageing.npz`` at check 2; the resume goes on from it
+    (only the checks after it are run again) and ends with the uninterrupted run's outputs, bit
+    for bit, and the same stage steps."""
+    import dem_taichi.protocol.aggregation as stage_module
+    from dem_taichi.protocol.resume import RunIdentity, load_ageing
+    from dem_taichi.protocol.runner import run_protocol
+
+    monkeypatch.setattr(stage_module, "AGEING_SAVE_SECONDS", 0.0)
+    calls, original = _count_holds(stage_module, stop_at=3)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(protocol_scene(), tmp_path)
+    finally:
+        stage_module.hold = original
+    _release_runs()
+    import json
+
+    record = json.loads((tmp_path / "run.json").read_text())
+    point = load_ageing(RunIdentity(tmp_path, record["run_id"], record["scene_sha256"]))
+    assert point is not None and point.progress["phase"] == "ageing"
+    assert point.progress["check"] == 2
+    calls, original = _count_holds(stage_module)
+    try:
+        resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
+    finally:
+        stage_module.hold = original
+    _release_runs()
+    full_checks = full_run.transition_details["aggregation"]
+    _assert_same_outputs(resumed, full_run)
+    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
+    assert resumed.transition_details["aggregation"] == full_checks
+    # the resumed run held only the checks after the save (the first two were not run again)
+    checks = -(-full_checks["aging_steps"] // protocol_settings(protocol_scene()).relax_check_steps)
+    assert checks > 2 and len(calls) == checks - 2
+
+
+def test_run_interrupted_after_the_ageing_resumes_without_it(full_run, tmp_path):
+    """Stopped at the first compression increment after the aggregation stage: ``ageing.npz``
+    holds the aged state (phase "aged"); the resume runs no ageing check at all and ends with
+    the uninterrupted run's outputs."""
+    import dem_taichi.protocol.aggregation as stage_module
+    import dem_taichi.protocol.transition as transition
+    from dem_taichi.protocol.runner import run_protocol
+
+    original = transition.load_compression
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    transition.load_compression = stop
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(protocol_scene(), tmp_path)
+    finally:
+        transition.load_compression = original
+    _release_runs()
+    assert (tmp_path / "resume" / "ageing.npz").exists()
+    assert not (tmp_path / "resume" / "A.npz").exists()
+    calls, original_hold = _count_holds(stage_module)
+    try:
+        resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
+    finally:
+        stage_module.hold = original_hold
+    _release_runs()
+    assert calls == []
+    _assert_same_outputs(resumed, full_run)
+    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
     assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
 
 

@@ -268,6 +268,29 @@ def test_the_stage_with_a_rigid_twin_is_deterministic_and_reaches_a():
     assert first.sim.bonded and first.aggregation_details is details_1
 
 
+def test_an_ageing_on_a_rigid_twin_is_saved_once_aged_with_the_bonded_state(monkeypatch):
+    """The resume points of the stage (``runner.save_point``, even asked at every check): on a
+    rigid twin none inside the ageing (the protocol's simulation is not the one ageing), one
+    when the stage is done, holding the bonded rods after the hand-over and the details."""
+    import dem_taichi.protocol.aggregation as stage_module
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.engine.state import states_equal
+    from dem_taichi.protocol.paths import ProtocolRunner
+    from dem_taichi.scene.probing_sections import ProbingConfig
+    from dem_taichi.scene.protocol_sections import protocol_settings
+
+    monkeypatch.setattr(stage_module, "AGEING_SAVE_SECONDS", 0.0)
+    scene = bonded(attractive_scene(**AGEING, aggregation_rod_model="rigid"))
+    runner = ProtocolRunner(Simulation(scene), protocol_settings(scene), ProbingConfig())
+    saves: list[tuple[dict, dict]] = []
+    runner.save_point = lambda progress: saves.append((progress, runner.sim.get_state()))
+    details = runner.aggregate()
+    assert [progress["phase"] for progress, _ in saves] == ["aged"]
+    progress, state = saves[0]
+    assert progress["details"] == details and progress["done"] == details["aging_steps"]
+    assert states_equal(state, runner.sim.get_state()) and runner.sim.bonded
+
+
 def test_rigid_on_rigid_rods_is_their_own_model():
     """``aggregation_rod_model = "rigid"`` on rigid rods changes nothing: the same state."""
     from dem_taichi.engine.state import states_equal
