@@ -142,7 +142,11 @@ def _plan(spec: SweepSpec, out: Path, overwrite: bool) -> tuple[list[Member], li
 
 def _restart(folder: Path, member: Member) -> str:
     """How a member run before starts again (what :func:`run_member` will do)."""
+    from dem_taichi.protocol.resume import stage_a_file
+
     if can_resume(folder, member.scene_sha256):
+        if not stage_a_file(folder).exists():
+            return "resumes from its last save inside the ageing stage (state A not reached)"
         return "resumes from its saved state A and finished branches"
     return "it had not saved state A: runs again from the gas"
 

@@ -54,7 +54,8 @@ done and that the same command resumes the others; the exit code is 128 + the si
 re-run of the same sweep says it resumes (how many members were done, unfinished, failed),
 skips the members that are done (same scene hash) and runs the others again: an unfinished or
 failed member that had reached state A resumes from there, with the branches from A it had
-finished (:mod:`dem_taichi.protocol.resume`); one stopped before A starts again from the gas.
+finished (:mod:`dem_taichi.protocol.resume`); one stopped before A goes on from its last save
+inside the ageing stage, if it has one, or starts again from the gas.
 A member done with another scene than the sweep file now gives it is refused unless
 ``--overwrite``. ``summarise`` refuses existing summary files (or links there) unless
 ``--overwrite`` and writes each atomically (a link is replaced, never its target); it and

@@ -150,13 +150,14 @@ def _publisher(name: str, folder: str = ""):
 
 def can_resume(out: Path, scene_sha256: str) -> bool:
     """Whether the unfinished member run in ``out`` can resume: its protocol saved state A
-    (:func:`dem_taichi.protocol.resume.stage_a_file`) and its run record holds this member's
+    (:func:`dem_taichi.protocol.resume.stage_a_file`) or a point of its ageing stage
+    (:func:`dem_taichi.protocol.resume.ageing_file`), and its run record holds this member's
     scene."""
-    from dem_taichi.protocol.resume import stage_a_file
+    from dem_taichi.protocol.resume import ageing_file, stage_a_file
 
     record = read_json(out / "run.json")
     return (
-        stage_a_file(out).exists()
+        (stage_a_file(out).exists() or ageing_file(out).exists())
         and record is not None
         and record.get("scene_sha256") == scene_sha256
     )

@@ -156,6 +156,15 @@ def test_plan_reruns_unfinished_and_failed_members_and_refuses_changed_ones(tmp_
     assert skipped == [done.name]
     assert why[running.name] == "unfinished; it had not saved state A: runs again from the gas"
     assert "failed before (ProtocolError: x)" in why[failed.name]
+    # a member stopped inside its ageing stage resumes from that save (resume/ageing.npz)
+    folder = member_dir(tmp_path, running.name)
+    write_json(folder / "run.json", {"scene_sha256": running.scene_sha256})
+    (folder / "resume").mkdir()
+    (folder / "resume" / "ageing.npz").write_bytes(b"")
+    why = _plan(spec, tmp_path, overwrite=False)[2]
+    assert why[running.name] == (
+        "unfinished; resumes from its last save inside the ageing stage (state A not reached)"
+    )
     changed = sweep_from_toml(
         '[sweep]\nscene = "smoke"\n[sweep.set]\n"contact.mu" = 0.3\n[sweep.grid]\n'
         '"scene.seed" = [1]\n'
