@@ -22,9 +22,13 @@ run_protocol() {
   local name=$1 scene=$2; shift 2
   [ -f "$OUT/$name/summary.json" ] && return
   [[ -n $ONLY && ! $name =~ $ONLY ]] && return
-  local start; start=$(date +%s)
-  "$PY" -m dem_taichi protocol "$scene" --out "$OUT/$name" "$@" > "$OUT/$name.log" 2>&1
-  echo "$name rc $? wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
+  local start resume=(); start=$(date +%s)
+  # a run stopped before its end (a session's end) goes on from its saves (resume/: inside the
+  # ageing, at A, the finished branches), its log appended
+  [ -f "$OUT/$name/run.json" ] && resume=(--resume)
+  "$PY" -m dem_taichi protocol "$scene" --out "$OUT/$name" "${resume[@]}" "$@" \
+    >> "$OUT/$name.log" 2>&1
+  echo "$name rc $? wall $(( $(date +%s) - start )) s${resume:+ (resumed)}" >> "$OUT/summary.txt"
 }
 bonded_cell() {
   local cell=$1 seed; shift
