@@ -26,8 +26,8 @@ bitwise on the smoke protocol). The work lost by an interruption is at most the 
 were running; a run stopped before A starts again from the gas, or from its last ageing save
 (``ageing.npz``: the thermostat's draws are seeded by the step, so the resumed ageing draws what
 the uninterrupted one drew, and the outputs are again bit for bit those of a run never
-interrupted). SIGINT/SIGTERM stop the run
-with one line saying how to resume (exit code 130/143).
+interrupted). SIGINT/SIGTERM stop the run with one line saying how to resume (exit code
+130/143).
 
 What a resume trusts and checks. The files are data only: a checkpoint-format ``.npz``
 (:mod:`dem_taichi.io.checkpoint`: arrays and one JSON member, read with

@@ -155,8 +155,8 @@ def run_protocol(
     from its saved state A, running only the branches without a saved outcome
     (:mod:`dem_taichi.protocol.resume`); the outputs equal those of an uninterrupted run. A run
     stopped before A goes on from its last save inside the aggregation stage (``ageing.npz``)
-    when there is one, else starts again from the gas. The resume files are data only and must carry
-    this run's id and scene hash; a damaged or foreign one is refused with one line naming it
+    when there is one, else starts again from the gas. The resume files are data only and must
+    carry this run's id and scene hash; a damaged or foreign one is refused with one line naming it
     (:class:`dem_taichi.protocol.resume.ResumeFileError`).
     """
     from dem_taichi.engine.simulation import Simulation
