@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 from dem_taichi.physics.forcelaw import disc_positions
 
 __all__ = [
+    "disc_overlaps",
     "disc_max_overlap",
     "max_overlap",
     "configuration_max_overlap",
@@ -50,13 +51,16 @@ def max_overlap(
     return disc_max_overlap(centres, n_spheres, cell_lengths, diameter)
 
 
-def disc_max_overlap(
+def disc_overlaps(
     centres: np.ndarray, n_spheres: int, cell_lengths: np.ndarray, diameter: float
-) -> float:
-    """Largest δ/d over pairs of discs of different rods (0 when no pair touches).
+) -> np.ndarray:
+    """δ/d of every touching pair of discs of different rods (empty when none touches).
 
     ``centres`` (M, 2) disc centres, rod-major (disc s of rod r at row r·n_s + s; pairs within
-    one rod are excluded), wrapped here into the periodic cell ``cell_lengths``.
+    one rod are excluded), wrapped here into the periodic cell ``cell_lengths``. The whole
+    distribution, not only its maximum: the largest overlap of a packing is an extreme value
+    that moves by tens of per cent between two runs that should not differ
+    (``benchmarks/results/bonded_time_step.md``), its mean and upper percentiles much less.
     """
     lengths = np.asarray(cell_lengths, dtype=float)
     rods = np.arange(len(centres)) // n_spheres
@@ -64,14 +68,24 @@ def disc_max_overlap(
     wrapped = np.where(wrapped >= lengths, wrapped - lengths, wrapped)  # mod's rounding to L
     pairs = cKDTree(wrapped, boxsize=lengths).query_pairs(diameter, output_type="ndarray")
     if pairs.size == 0:
-        return 0.0
+        return np.zeros(0)
     pairs = pairs[rods[pairs[:, 0]] != rods[pairs[:, 1]]]
     if pairs.size == 0:
-        return 0.0
+        return np.zeros(0)
     gap = wrapped[pairs[:, 0]] - wrapped[pairs[:, 1]]
     gap -= lengths * np.round(gap / lengths)  # minimum image
     distance = np.sqrt((gap**2).sum(axis=1))
-    return float(max(0.0, (diameter - distance.min()) / diameter))
+    overlap = (diameter - distance) / diameter
+    return overlap[overlap > 0.0]
+
+
+def disc_max_overlap(
+    centres: np.ndarray, n_spheres: int, cell_lengths: np.ndarray, diameter: float
+) -> float:
+    """Largest δ/d over pairs of discs of different rods (0 when no pair touches):
+    the maximum of :func:`disc_overlaps`."""
+    overlaps = disc_overlaps(centres, n_spheres, cell_lengths, diameter)
+    return float(overlaps.max()) if overlaps.size else 0.0
 
 
 def configuration_max_overlap(path: str | Path) -> float:

@@ -13,6 +13,8 @@ import pytest
 
 from dem_taichi.analysis.overlaps import (
     configuration_max_overlap,
+    disc_max_overlap,
+    disc_overlaps,
     max_overlap,
     run_max_overlap,
     state_max_overlap,
@@ -52,6 +54,19 @@ def test_a_rods_own_discs_and_distant_rods_do_not_count():
         np.array([[5.0, 5.0], [5.0, 5.0]]), np.array([0.0, math.pi / 2]), L, 3, 1.0, 1.0
     )
     assert cross == pytest.approx(1.0)
+
+
+def test_every_touching_pair_is_in_the_distribution():
+    """disc_overlaps: one δ/d per touching pair of discs of different rods, across the periodic
+    boundary too; its maximum is disc_max_overlap; none touching gives an empty array and 0."""
+    # two 1-disc "rods" 0.98 d apart, two 0.95 d apart through x = 0, one far from all
+    centres = np.array([[5.0, 5.0], [5.0, 5.98], [0.2, 2.0], [L[0] - 0.75, 2.0], [12.0, 8.0]])
+    got = np.sort(disc_overlaps(centres, 1, L, 1.0))
+    assert got == pytest.approx([0.02, 0.05], abs=1e-12)
+    assert disc_max_overlap(centres, 1, L, 1.0) == pytest.approx(0.05, abs=1e-12)
+    # the first four as two 2-disc rods (discs 0-1 and 2-3): each touching pair is one rod's
+    assert disc_overlaps(centres[:4], 2, L, 1.0).size == 0
+    assert disc_max_overlap(centres[:4], 2, L, 1.0) == 0.0
 
 
 def _write(path, rod_model, y2):

@@ -858,6 +858,10 @@ def test_paired_paths_pooled_variants_give_their_own_branches(run, tmp_path):
     assert len(base["time_step"]) == len(dt2["time_step"]) == 1
     assert dt2["time_step"][0] == pytest.approx(2.0 * base["time_step"][0], rel=1e-12)
     assert dt2["steps"]["A_to_C"] != base["steps"]["A_to_C"]
+    for label in ("B", "C", "B'"):  # the overlaps' distribution beside its maximum
+        f = base["findings"]
+        assert 0 < f[f"mean_overlap@{label}"] <= f[f"p99_overlap@{label}"]
+        assert f[f"p99_overlap@{label}"] <= f[f"max_overlap@{label}"]
     for entry in (base, dt2):
         assert entry["branches_wall_seconds"] is None
         assert entry["branch_process_seconds"] == sum(entry["branch_seconds"].values()) > 0
