@@ -366,14 +366,7 @@ def _restore_ageing(runner: ProtocolRunner, saved: AgeingPoint, history, relaxed
     them), the run's log, the engine's state, and where the stage stood (aged: the stage is
     skipped; ageing: it goes on from that check, :func:`dem_taichi.protocol.aggregation.
     aggregate`)."""
-    for record in saved.history:
-        history.append(record)
-    for record in saved.relaxed:
-        relaxed.append(record)
-    for f in dataclasses.fields(saved.log):
-        setattr(runner.log, f.name, getattr(saved.log, f.name))
-    runner.sim.work = runner.log.work
-    runner.sim.set_state(saved.state)
+    _restore_saved(runner, saved, history, relaxed)
     progress = saved.progress
     if progress["phase"] == "aged":
         runner.aggregation_details = dict(progress["details"])
@@ -388,6 +381,14 @@ def _restore_ageing(runner: ProtocolRunner, saved: AgeingPoint, history, relaxed
 def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) -> None:
     """Put a resumed run where it was at state A: the history files' records up to A written
     again, the run's log at A, the engine's state at A."""
+    _restore_saved(runner, saved, history, relaxed)
+    runner.state_A = saved.state
+
+
+def _restore_saved(runner: ProtocolRunner, saved: StageA | AgeingPoint, history, relaxed) -> None:
+    """What every resume point restores: its history and relaxed-state records appended to
+    ``history`` and ``relaxed`` (the files' writers, or recording writers that keep them for
+    later saves), the run's log, the simulation's work ledger and the engine's state."""
     for record in saved.history:
         history.append(record)
     for record in saved.relaxed:
@@ -396,7 +397,6 @@ def _restore_stage_a(runner: ProtocolRunner, saved: StageA, history, relaxed) ->
         setattr(runner.log, f.name, getattr(saved.log, f.name))
     runner.sim.work = runner.log.work  # the saved ledger goes on filling
     runner.sim.set_state(saved.state)
-    runner.state_A = saved.state
 
 
 def _write_paraview(out: Path, log: RunLog) -> None:

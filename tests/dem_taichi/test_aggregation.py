@@ -464,6 +464,32 @@ def test_run_interrupted_during_the_ageing_resumes_to_the_same_outputs(full_run,
     assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
 
 
+def _run_stopped(tmp_path, module, name: str) -> None:
+    """Run the protocol scene in ``tmp_path`` with ``module.name`` replaced by a function that
+    raises KeyboardInterrupt (as Ctrl-C would, where the run calls it), the original restored."""
+    from dem_taichi.protocol.runner import run_protocol
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    original = getattr(module, name)
+    setattr(module, name, stop)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_protocol(protocol_scene(), tmp_path)
+    finally:
+        setattr(module, name, original)
+    _release_runs()
+
+
+def _assert_same_run(resumed, full_run) -> None:
+    """A resumed run against the uninterrupted one: every output bit for bit, the aggregation
+    stage's steps and details the same."""
+    _assert_same_outputs(resumed, full_run)
+    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
+    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+
+
 def _count_holds(stage_module, stop_at: int | None = None):
     """Patch the stage's ``hold`` to count its calls (and raise KeyboardInterrupt at call
     ``stop_at``, as Ctrl-C would); returns the list of calls and the original."""
@@ -487,6 +513,8 @@ def test_run_interrupted_inside_the_ageing_resumes_from_its_last_save(
     third check of the ageing has ``resume/ageing.npz`` at check 2; the resume goes on from it
     (only the checks after it are run again) and ends with the uninterrupted run's outputs, bit
     for bit, and the same stage steps."""
+    import json
+
     import dem_taichi.protocol.aggregation as stage_module
     from dem_taichi.protocol.resume import RunIdentity, load_ageing
     from dem_taichi.protocol.runner import run_protocol
@@ -499,8 +527,6 @@ def test_run_interrupted_inside_the_ageing_resumes_from_its_last_save(
     finally:
         stage_module.hold = original
     _release_runs()
-    import json
-
     record = json.loads((tmp_path / "run.json").read_text())
     point = load_ageing(RunIdentity(tmp_path, record["run_id"], record["scene_sha256"]))
     assert point is not None and point.progress["phase"] == "ageing"
@@ -511,12 +537,10 @@ def test_run_interrupted_inside_the_ageing_resumes_from_its_last_save(
     finally:
         stage_module.hold = original
     _release_runs()
-    full_checks = full_run.transition_details["aggregation"]
-    _assert_same_outputs(resumed, full_run)
-    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
-    assert resumed.transition_details["aggregation"] == full_checks
+    _assert_same_run(resumed, full_run)
     # the resumed run held only the checks after the save (the first two were not run again)
-    checks = -(-full_checks["aging_steps"] // protocol_settings(protocol_scene()).relax_check_steps)
+    steps = full_run.transition_details["aggregation"]["aging_steps"]
+    checks = -(-steps // protocol_settings(protocol_scene()).relax_check_steps)
     assert checks > 2 and len(calls) == checks - 2
 
 
@@ -528,18 +552,7 @@ def test_run_interrupted_after_the_ageing_resumes_without_it(full_run, tmp_path)
     import dem_taichi.protocol.transition as transition
     from dem_taichi.protocol.runner import run_protocol
 
-    original = transition.load_compression
-
-    def stop(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    transition.load_compression = stop
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_protocol(protocol_scene(), tmp_path)
-    finally:
-        transition.load_compression = original
-    _release_runs()
+    _run_stopped(tmp_path, transition, "load_compression")
     assert (tmp_path / "resume" / "ageing.npz").exists()
     assert not (tmp_path / "resume" / "A.npz").exists()
     calls, original_hold = _count_holds(stage_module)
@@ -549,9 +562,7 @@ def test_run_interrupted_after_the_ageing_resumes_without_it(full_run, tmp_path)
         stage_module.hold = original_hold
     _release_runs()
     assert calls == []
-    _assert_same_outputs(resumed, full_run)
-    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
-    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+    _assert_same_run(resumed, full_run)
 
 
 def test_run_interrupted_after_a_resumes_to_the_same_outputs(full_run, tmp_path):
@@ -560,24 +571,11 @@ def test_run_interrupted_after_a_resumes_to_the_same_outputs(full_run, tmp_path)
     import dem_taichi.protocol.branches as branches
     from dem_taichi.protocol.runner import run_protocol
 
-    original = branches.run_branch_on
-
-    def stop(runner, branch):
-        raise KeyboardInterrupt
-
-    branches.run_branch_on = stop
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_protocol(protocol_scene(), tmp_path)
-    finally:
-        branches.run_branch_on = original
-    _release_runs()
+    _run_stopped(tmp_path, branches, "run_branch_on")
     assert (tmp_path / "resume" / "A.npz").exists()
     resumed = run_protocol(protocol_scene(), tmp_path, resume=True)
     _release_runs()
-    _assert_same_outputs(resumed, full_run)
-    assert resumed.stages["aggregation"].steps == full_run.stages["aggregation"].steps
-    assert resumed.transition_details["aggregation"] == full_run.transition_details["aggregation"]
+    _assert_same_run(resumed, full_run)
 
 
 # -- the keys: defaults, round trip, refusals ---------------------------------------------------
