@@ -14,6 +14,14 @@ interval (Student t over the seeds) and whether the variant passes the criterion
 before the runs: |mean paired difference| ≤ 0.5 × the base's seed-to-seed standard deviation
 (``protocol_speed.md``), or, with ``--null NAME``, beside the null pair's differences, flagged
 where the variant's interval excludes 0 and the null pair's does not (``study_servo.md``).
+
+With ``--null``, the overlaps too (``bonded_time_step.md``, second pairing): per seed, the ratio
+variant/base of the mean overlap of the touching disc pairs and of their 99th percentile at
+each of B, C and B′, their geometric mean over the states, and over the seeds that recorded them
+the mean of its logarithm ± 95 % (Student t) shown as a ratio, beside the null pair's; flagged
+where the variant's interval lies wholly above 1 and its ratio exceeds the null pair's by more
+than 5 %. With ``--a-files FILE.json ...`` (``paired_paths.py --branches none`` runs: the same
+gases compressed to A with other settings), state A of each seed beside the base's.
 """
 
 from __future__ import annotations
@@ -168,6 +176,100 @@ def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
     return lines
 
 
+#: the labelled states whose overlaps are compared, and the overlap measures
+OVERLAP_STATES = ("B", "C", "B'")
+OVERLAP_MEASURES = (("mean_overlap", "mean δ/d"), ("p99_overlap", "99th percentile of δ/d"))
+#: a variant deepens the overlaps when its ratio's interval lies above 1 and the ratio exceeds
+#: the null pair's by more than this factor
+OVERLAP_MARGIN = 1.05
+
+
+def overlap_ratio(seed: dict, variant: str, base: str, measure: str) -> float:
+    """The geometric mean over :data:`OVERLAP_STATES` of ``measure@state`` variant/base (NaN
+    where a state lacks it: files written before the measure was recorded)."""
+    logs = []
+    for state in OVERLAP_STATES:
+        here = _value(seed, variant, f"{measure}@{state}")
+        there = _value(seed, base, f"{measure}@{state}")
+        if not (math.isfinite(here) and math.isfinite(there) and here > 0 and there > 0):
+            return math.nan
+        logs.append(math.log(here / there))
+    return math.exp(float(np.mean(logs)))
+
+
+def ratio_interval(ratios: list[float]) -> tuple[float, float, float]:
+    """The geometric mean of finite ratios and its 95 % interval (Student t on the logarithms):
+    (ratio, low, high); NaN bounds below two values."""
+    logs = [math.log(r) for r in ratios if math.isfinite(r)]
+    mean, half = interval(logs) if logs else (math.nan, math.nan)
+    if not math.isfinite(half):
+        return math.exp(mean), math.nan, math.nan
+    return math.exp(mean), math.exp(mean - half), math.exp(mean + half)
+
+
+def overlap_table(seeds: list[dict], base: str, null: str) -> list[str]:
+    """Each variant's overlap ratios to ``base`` beside the null pair's, and whether the
+    variant deepens the overlaps (criterion O of ``bonded_time_step.md``'s second pairing);
+    then the largest overlap per seed and state (no criterion)."""
+    have = [s for s in seeds if math.isfinite(overlap_ratio(s, null, base, "mean_overlap"))]
+    if not have:
+        return []
+    labels = ", ".join(str(s["seed"]) for s in have)
+    states = ", ".join(OVERLAP_STATES)
+    lines = [
+        "", f"### Overlaps against the null pair (seeds {labels}; states {states})", "",
+        "| variant | measure | ratio to base per seed | ratio: geometric mean [95 %] | "
+        "deepened |",
+        "|---|---|---|---|---|",
+    ]  # fmt: skip
+    null_ratios = {m: ratio_interval([overlap_ratio(s, null, base, m) for s in have])[0]
+                   for m, _ in OVERLAP_MEASURES}  # fmt: skip
+    for name in [v for v in have[0]["variants"] if v != base]:
+        for measure, label in OVERLAP_MEASURES:
+            per_seed = [overlap_ratio(s, name, base, measure) for s in have]
+            ratio, low, high = ratio_interval(per_seed)
+            deepened = (name != null and low > 1.0
+                        and ratio > OVERLAP_MARGIN * null_ratios[measure])  # fmt: skip
+            shown = "—" if name == null else ("**yes**" if deepened else "no")
+            lines.append(
+                f"| {name} | {label} | {', '.join(f'{r:.3f}' for r in per_seed)} | "
+                f"{ratio:.3f} [{low:.3f}, {high:.3f}] | {shown} |"
+            )
+    lines += ["", "Largest overlap (per cent of d) at " + states + ":", "",
+              "| seed | " + " | ".join(v for v in have[0]["variants"]) + " |",
+              "|---|" + "---|" * len(have[0]["variants"])]  # fmt: skip
+    for s in have:
+        cells = [", ".join(f"{100 * _value(s, v, f'max_overlap@{st}'):.2f}"
+                           for st in OVERLAP_STATES) for v in s["variants"]]  # fmt: skip
+        lines.append(f"| {s['seed']} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def a_table(seeds: list[dict], others: list[dict], base: str) -> list[str]:
+    """State A of each seed as the base compressed it beside ``others``' (the same gas
+    compressed to A with other settings, ``paired_paths.py --branches none``)."""
+    by_seed = {s["seed"]: s for s in seeds}
+    lines = [
+        "", "### State A under other settings (the same gas)", "",
+        "| seed | settings | v_A: base → other | p_A: base → other | steps to A | seconds to A |",
+        "|---|---|---|---|---|---|",
+    ]  # fmt: skip
+    for other in sorted(others, key=lambda o: o["seed"]):
+        mine = by_seed.get(other["seed"])
+        if mine is None:
+            continue
+        finding = next(iter(other["variants"].values()))["findings"]
+        base_finding = mine["variants"][base]["findings"]
+        lines.append(
+            f"| {other['seed']} | {'; '.join(other['overrides'])} | "
+            f"{base_finding['v_A']:.4f} → {finding['v_A']:.4f} | "
+            f"{base_finding['p_A']:.4g} → {finding['p_A']:.4g} | "
+            f"{mine['steps_to_A']:,} → {other['steps_to_A']:,} | "
+            f"{mine['seconds_to_A']:.0f} → {other['seconds_to_A']:.0f} |"
+        )
+    return lines
+
+
 def merge_by_seed(files: list[dict]) -> list[dict]:
     """One entry per seed: the variants of several files of the same seed (and the same state
     A, checked by its p and v) put together, in the order given."""
@@ -191,10 +293,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("seeds", nargs="+", type=Path)
     parser.add_argument("--base", default="base")
     parser.add_argument("--null", default=None, help="the variant that should change nothing")
+    parser.add_argument(
+        "--a-files",
+        nargs="*",
+        type=Path,
+        default=[],
+        help="paired_paths.py --branches none runs: A under other settings",
+    )
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     seeds = merge_by_seed([json.loads(p.read_text()) for p in args.seeds])
-    text = "\n".join(table(seeds, args.base, args.null))
+    lines = table(seeds, args.base, args.null)
+    if args.null is not None:
+        lines += overlap_table(seeds, args.base, args.null)
+    if args.a_files:
+        lines += a_table(seeds, [json.loads(p.read_text()) for p in args.a_files], args.base)
+    text = "\n".join(lines)
     print(text)
     if args.out:
         args.out.write_text(text + "\n")
