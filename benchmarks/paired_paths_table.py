@@ -258,6 +258,10 @@ def a_table(seeds: list[dict], others: list[dict], base: str) -> list[str]:
         mine = by_seed.get(other["seed"])
         if mine is None:
             continue
+        if other.get("scene") != mine.get("scene"):
+            raise SystemExit(
+                f"seed {other['seed']}: A of {other.get('scene')} beside {mine.get('scene')}"
+            )
         finding = next(iter(other["variants"].values()))["findings"]
         base_finding = mine["variants"][base]["findings"]
         lines.append(

@@ -122,11 +122,13 @@ def test_seeds_without_the_overlap_measures_are_left_out(tables):
 
 
 def test_state_a_under_other_settings_is_shown_beside_the_base(tables):
-    seed = {"seed": 6, "steps_to_A": 600_000, "seconds_to_A": 400.0,
+    seed = {"seed": 6, "scene": "paper_bonded", "steps_to_A": 600_000, "seconds_to_A": 400.0,
             "variants": {"base": {"findings": {"v_A": 2.09, "p_A": 0.8}}}}  # fmt: skip
-    other = {"seed": 6, "steps_to_A": 300_000, "seconds_to_A": 180.0,
+    other = {"seed": 6, "scene": "paper_bonded", "steps_to_A": 300_000, "seconds_to_A": 180.0,
              "overrides": ["integration.dt_safety=0.30"],
              "variants": {"base": {"findings": {"v_A": 2.175, "p_A": 0.611}}}}  # fmt: skip
     row = tables.a_table([seed], [other], "base")[-1]
     assert row == ("| 6 | integration.dt_safety=0.30 | 2.0900 → 2.1750 | 0.8 → 0.611 | "
                    "600,000 → 300,000 | 400 → 180 |")  # fmt: skip
+    with pytest.raises(SystemExit, match="A of smoke_bonded beside paper_bonded"):
+        tables.a_table([seed], [{**other, "scene": "smoke_bonded"}], "base")
