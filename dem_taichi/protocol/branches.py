@@ -27,6 +27,8 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
+import numpy as np
+
 from dem_taichi.protocol.paths import ProtocolRunner
 from dem_taichi.protocol.records import (
     Branch,
@@ -79,16 +81,40 @@ def branch_labels(branches: Iterable[Branch]) -> str:
 
 
 def run_branch_on(runner: ProtocolRunner, branch: Branch) -> None:
-    """Run one branch from A on ``runner`` (its simulation is set to A by the path itself)."""
-    if branch.kind == "isotropic":
-        runner.isotropic_path()
-    elif branch.kind == "k0":
-        runner.k0_path()
-        if runner.config.run_unloading:
-            runner.unloading_path()
-    else:
-        assert branch.eta is not None  # a radial branch has its η (Branch.__post_init__)
-        runner.radial_path(branch.eta, branch.index)
+    """Run one branch from A on ``runner`` (its simulation is set to A by the path itself), at
+    the paths' Δt (``[protocol] path_time_step_factor`` × the Δt the engine integrated A with,
+    restored after the branch, also on error)."""
+    sim, state_a = runner.sim, runner.state_A
+    prepared = sim.time_step
+    path_dt = runner.config.path_time_step(prepared)
+    if path_dt != prepared:  # the paths restore A, its runtime parameters with it: A at path_dt
+        sim.set_parameters(time_step=path_dt)
+        if state_a is not None:
+            runner.state_A = state_at_time_step(state_a, path_dt)
+    try:
+        if branch.kind == "isotropic":
+            runner.isotropic_path()
+        elif branch.kind == "k0":
+            runner.k0_path()
+            if runner.config.run_unloading:
+                runner.unloading_path()
+        else:
+            assert branch.eta is not None  # a radial branch has its η (Branch.__post_init__)
+            runner.radial_path(branch.eta, branch.index)
+    finally:
+        if path_dt != prepared:
+            runner.state_A = state_a
+            sim.set_parameters(time_step=prepared)
+
+
+def state_at_time_step(state: dict, time_step: float) -> dict:
+    """A copy of an engine state (:meth:`Simulation.get_state`) whose runtime parameters
+    integrate at ``time_step`` (the rest of the state shared, not copied)."""
+    from dem_taichi.engine.parameters import EngineParameters
+
+    params = np.asarray(state["params"])
+    tuned = EngineParameters.from_vector(params).tuned(time_step=time_step)
+    return {**state, "params": tuned.vector(params.dtype)}
 
 
 class _RecordList(list):

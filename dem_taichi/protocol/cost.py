@@ -147,6 +147,7 @@ def _protocol_steps(scene) -> tuple[float, float]:
     # the strain to apply grows with ln(p_end / p_A); p_A ≈ 1.2 × the pressure tolerance
     span = math.log(max(c.target_mean_stress / p_a, 1.01))
     paths *= span / math.log(100.0 / 0.6)
+    paths /= c.path_time_step_factor or 1.0  # the same loading in fewer, longer steps
     rate = REFERENCE_INERTIAL_NUMBER / scene.control.inertial_number_max
     servo = SECANT_FACTOR if c.servo_stiffness == "secant" else 1.0
     dt = _reference_time_step() / scene.time_step  # the loading takes a time, not steps

@@ -382,6 +382,23 @@ class ProtocolConfig(SceneSection):
     servo_inertial_number_safety: float | None = field(
         default=None, metadata=SERVO_KEYS["servo_inertial_number_safety"]
     )
+    path_time_step_factor: float | None = field(
+        default=None,
+        metadata={
+            **_range(
+                0.0,
+                4.0,
+                lo_open=True,
+                doc=(
+                    "the paths from A (every branch and its probes) at this multiple of the "
+                    "scene's Δt (unset: 1); the preparation (ageing, compression to A, the probes "
+                    "at A) keeps the scene's Δt; check intervals stay in steps"
+                ),
+                unit="1",
+            ),
+            "optional": True,
+        },
+    )
     save_states: bool = field(
         default=True,
         metadata=_doc("write a checkpoint state_<label>.npz at every labelled state", "-"),
@@ -520,6 +537,14 @@ class ProtocolConfig(SceneSection):
                 "'bonded': use rod_model = 'rigid', aggregation_rod_model = 'rigid' (age the "
                 "gas as rigid rods), or another aggregation_thermostat"
             )
+        # the ageing of bonded rods aged as rigid runs on the rigid twin: no bonds to hold
+        aged_bonded = scene.bonded and not self.ages_rigid(scene)
+        check_time_step_factor(
+            scene, "aggregation_time_step_factor", self.aggregation_time_step_factor, aged_bonded
+        )
+        check_time_step_factor(
+            scene, "path_time_step_factor", self.path_time_step_factor, scene.bonded
+        )
         lr = scene.long_range
         if self.pressure_tolerance_reduced is not None and not (
             lr.enabled and lr.pattern in ("acidic", "basic")
@@ -530,6 +555,10 @@ class ProtocolConfig(SceneSection):
                 f"needs long-range forces (P* = p d / F_max); this scene's [long_range] has "
                 f"{state}: give pressure_tolerance instead"
             )
+
+    def path_time_step(self, scene_time_step: float) -> float:
+        """Δt of the paths from A: ``path_time_step_factor`` × the scene's Δt."""
+        return scene_time_step * (self.path_time_step_factor or 1.0)
 
     def inner_stress_tolerance(self) -> float:
         """|σ − σ_target|/σ_target at the relaxed states inside a path: ``path_stress_tolerance``
@@ -560,6 +589,34 @@ class ProtocolConfig(SceneSection):
     def radial_ratios(self) -> tuple[float, ...]:
         """η of the radial paths, parsed from ``radial_stress_ratios``."""
         return parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
+
+
+def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) -> None:
+    """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
+    integration past what its own ``dt_safety`` is held to: the measured stability limit of
+    bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
+    bound
+    (:func:`dem_taichi.scene.config.tangential_stiffness_limit`)."""
+    from dem_taichi.scene.config import BONDED_DT_SAFETY_LIMIT, tangential_stiffness_limit
+
+    if factor is None or factor <= 1.0:
+        return
+    dt_safety = scene.integration.dt_safety
+    effective = dt_safety * factor
+    if bonded and effective > BONDED_DT_SAFETY_LIMIT:
+        raise SceneError(
+            f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
+            f"{effective:.3g}, beyond the measured stability limit of bonded rods, "
+            f"{BONDED_DT_SAFETY_LIMIT}: allowed {key} <= {BONDED_DT_SAFETY_LIMIT / dt_safety:.3g}"
+        )
+    c = scene.contact
+    limit = tangential_stiffness_limit(effective)
+    if c.k_t > limit * c.k_n:
+        raise SceneError(
+            f"[protocol] {key} = {factor!r}: at dt_safety {effective:.3g} the tangential spring "
+            f"k_t = {c.k_t!r} ({c.k_t / c.k_n:.3g} × k_n) is beyond the leapfrog bound k_t/k_n "
+            f"<= {limit:.3g}: lower {key} or k_t"
+        )
 
 
 def protocol_settings(scene) -> ProtocolConfig:

@@ -9,7 +9,7 @@ import pytest
 
 from dem_taichi.protocol.cost import LONG_RUN_SECONDS, check_cost, estimate_cost
 from dem_taichi.protocol.run_schedule import builtin_schedule
-from dem_taichi.scene.config import load_scene
+from dem_taichi.scene.config import load_scene, scene_with_overrides
 from dem_taichi.scene.options import with_preset
 
 
@@ -49,6 +49,10 @@ def test_protocol_estimate_follows_the_knobs():
     # the measured default protocol (serial, seed 2): 8.2 M path steps, 33 min; within ×3
     assert 8.2e6 / 3 < base.steps < 3 * 8.2e6
     assert 33 * 60 / 3 < base.cpu_seconds < 3 * 33 * 60
+    # the paths at twice the Δt: their steps halve, the gas to A's do not
+    coarse_scene = scene_with_overrides(scene, ["protocol.path_time_step_factor=2"])
+    coarse = estimate_cost(coarse_scene, "protocol").steps
+    assert base.steps / 2 < coarse < base.steps
 
 
 def test_memory_beyond_the_machine_is_refused_with_what_to_change():

@@ -803,6 +803,57 @@ def test_the_isotropic_path_past_b_leaves_a_to_b_bitwise_and_ends_at_its_stress(
     assert list(longer.states) == ["A", "B"]
 
 
+def _coarse_scene():
+    """The smoke protocol's A→B and A→C at twice the scene's Δt (``path_time_step_factor``)."""
+    return smoke_protocol_scene(
+        path_time_step_factor=2.0, run_unloading=False, radial_stress_ratios=""
+    )
+
+
+@pytest.fixture(scope="module")
+def coarse_run(tmp_path_factory):
+    from dem_taichi.protocol.runner import run_protocol
+
+    return run_protocol(_coarse_scene(), tmp_path_factory.mktemp("protocol_coarse"))
+
+
+def test_the_paths_at_twice_the_time_step_leave_the_preparation_bitwise(run, coarse_run):
+    """``path_time_step_factor = 2`` on the smoke protocol (serial, A→B then A→C): A is bit for
+    bit the run's (the compression and the probes at A keep the scene's Δt); every step of A→B
+    and of A→C advances the simulated time by twice the scene's Δt (the step restored between
+    the branches: not 4×); B and C are reached within the servo's tolerance."""
+    coarse, scene = coarse_run, _coarse_scene()
+    assert coarse.states["A"].measures == run.states["A"].measures
+    history = open_history(coarse.files["history"])
+    stage, step, time = (history[k].values for k in ("stage", "step", "time"))
+    dt = scene.time_step
+    for name, factor in (("isotropic_to_A", 1.0), ("A_to_B", 2.0), ("A_to_C", 2.0)):
+        rows = np.flatnonzero(stage == stage_code(name))
+        rows = rows[np.diff(step[rows], prepend=step[rows[0]]) > 0]  # records of new steps
+        per_step = np.diff(time[rows]) / np.diff(step[rows])
+        np.testing.assert_allclose(per_step, factor * dt, rtol=1e-9, err_msg=name)
+    for label, target in (("B", 20.0), ("C", None)):
+        m = coarse.states[label].measures
+        assert m["step"] != run.states[label].measures["step"]  # another trajectory
+        if target is not None:
+            assert m["mean_stress"] == pytest.approx(target, rel=TOL)
+    assert list(coarse.states) == ["A", "B", "C"]
+
+
+# spawned branch processes (~30 s), run by `make test-slow`
+@pytest.mark.slow
+def test_the_paths_at_twice_the_time_step_in_two_processes_equal_the_serial_run(
+    coarse_run, tmp_path
+):
+    """The branch processes take the paths' Δt from the checkpoint of A as the serial run does:
+    B and C bit for bit the serial run's at ``path_time_step_factor = 2``."""
+    from dem_taichi.protocol.runner import run_protocol
+
+    par = run_protocol(_coarse_scene(), tmp_path / "par", workers=2)
+    for label in ("A", "B", "C"):
+        assert par.states[label].measures == coarse_run.states[label].measures, label
+
+
 # a benchmark tool's check (~20-35 s: a spawned branch process), run by `make test-slow`
 @pytest.mark.slow
 def test_paired_paths_from_a_run_gives_its_branches_bit_for_bit(run, tmp_path):

@@ -102,3 +102,33 @@ def test_scene_lists_may_be_toml_arrays():
     assert scene_from_toml(scene_to_toml(scene)) == scene
     with pytest.raises(SceneError, match="a list of numbers or strings"):
         scene_from_toml("[protocol]\nradial_stress_ratios = [true]\n")
+
+
+def test_a_path_time_step_factor_is_held_to_the_scenes_stability_bounds():
+    """``path_time_step_factor`` × dt_safety: bonded rods refused past their measured limit
+    (0.4: 0.15 × 2 loads, 0.15 × 3 does not), a tangential spring refused past the leapfrog
+    bound at the coarser step; the ageing's factor is held to the same bounds, except the bonded
+    one where the bonded rods age as rigid rods (their rigid twin has no bonds)."""
+    from dem_taichi.scene.config import scene_with_overrides
+
+    bonded = load_scene("paper_bonded")
+    assert protocol_settings(
+        scene_with_overrides(bonded, ["protocol.path_time_step_factor=2"])
+    ).path_time_step(1.0) == pytest.approx(2.0)
+    with pytest.raises(SceneError, match=r"path_time_step_factor = 3.0 × .* allowed .* <= 2.67"):
+        scene_with_overrides(bonded, ["protocol.path_time_step_factor=3"])
+    # k_t/k_n 3: within the bound at 0.15 (6.0), beyond it at 0.3 (1.5)
+    stiff = scene_with_overrides(load_scene("smoke"), ["contact.k_t=3e5"])
+    with pytest.raises(SceneError, match="path_time_step_factor = 2.0: .* leapfrog bound"):
+        scene_with_overrides(stiff, ["protocol.path_time_step_factor=2"])
+    with pytest.raises(SceneError, match="aggregation_time_step_factor = 2.0: .* leapfrog"):
+        scene_with_overrides(
+            stiff, ['protocol.aggregation="time"', "protocol.aggregation_time=10",
+                    "protocol.aggregation_time_step_factor=2"],
+        )  # fmt: skip
+    aged = ['protocol.aggregation="time"', "protocol.aggregation_time=10",
+            "protocol.aggregation_time_step_factor=3"]  # fmt: skip
+    with pytest.raises(SceneError, match="aggregation_time_step_factor = 3.0 × "):
+        scene_with_overrides(bonded, aged)
+    scene_with_overrides(bonded, [*aged, 'protocol.aggregation_rod_model="rigid"'])
+    assert protocol_settings(load_scene("smoke")).path_time_step(0.25) == 0.25  # unset: 1
