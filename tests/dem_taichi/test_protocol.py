@@ -890,17 +890,21 @@ def test_paired_paths_pooled_variants_give_their_own_branches(run, tmp_path):
     gets its own branches back (the base's B, C and B′ are the run's bit for bit), a variant's
     seconds are its branches' process seconds, and a time-step variant
     (``integration.dt_safety``, the smoke scene's 0.15 doubled) runs its branches from the same A
-    at twice the run's Δt; an engine key outside VARIANT_KEYS is refused."""
+    at twice the run's Δt, as ``protocol.path_time_step_factor = 2`` does, bit for bit; an engine
+    key outside VARIANT_KEYS is refused."""
     import json
 
     module = _benchmark_module("paired_paths")
     out = tmp_path / "pooled.json"
     argv = ["--from-run", str(run.out_dir), "--branches", "k0,isotropic", "--pool",
             "--variant", "base=", "--variant", "dt2=integration.dt_safety=0.3",
-            "--workers", "2"]  # fmt: skip
+            "--variant", "pf2=protocol.path_time_step_factor=2", "--workers", "2"]  # fmt: skip
     assert module.main([*argv, "--out", str(out)]) == 0
     variants = json.loads(out.read_text())["variants"]
     base, dt2 = variants["base"], variants["dt2"]
+    # the protocol's own key for the paths' Δt gives the time-step variant's branches exactly
+    assert variants["pf2"]["findings"] == dt2["findings"]
+    assert variants["pf2"]["steps"] == dt2["steps"]
     for label in ("B", "C", "B'"):
         m = run.states[label].measures
         for key in ("mean_stress", "specific_volume", "fabric_deviator"):
