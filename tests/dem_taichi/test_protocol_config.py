@@ -111,7 +111,7 @@ def test_a_path_time_step_factor_is_held_to_the_scenes_stability_bounds():
     one where the bonded rods age as rigid rods (their rigid twin has no bonds)."""
     from dem_taichi.scene.config import scene_with_overrides
 
-    bonded = load_scene("paper_bonded")
+    bonded = scene_with_overrides(load_scene("paper_bonded"), ["integration.dt_safety=0.15"])
     assert protocol_settings(
         scene_with_overrides(bonded, ["protocol.path_time_step_factor=2"])
     ).path_time_step(1.0) == pytest.approx(2.0)
