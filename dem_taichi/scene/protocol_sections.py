@@ -595,8 +595,7 @@ def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) 
     """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
     integration past what its own ``dt_safety`` is held to: the measured stability limit of
     bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
-    bound
-    (:func:`dem_taichi.scene.config.tangential_stiffness_limit`)."""
+    bound (:func:`dem_taichi.scene.config.tangential_stiffness_limit`)."""
     from dem_taichi.scene.config import BONDED_DT_SAFETY_LIMIT, tangential_stiffness_limit
 
     if factor is None or factor <= 1.0:
