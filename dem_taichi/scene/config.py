@@ -82,6 +82,10 @@ from dem_taichi.scene.sections import (
     VanDerWaals,
 )
 
+# the time step's bounds, defined in scene/stability.py (importable from here, as before)
+from dem_taichi.scene.stability import BONDED_DT_SAFETY_LIMIT as BONDED_DT_SAFETY_LIMIT
+from dem_taichi.scene.stability import tangential_stiffness_limit as tangential_stiffness_limit
+
 __all__ = [
     "SceneError",
     "SceneSection",
@@ -280,10 +284,6 @@ class Scene:
         return self.replace(**sections)
 
 
-#: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
-#: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
-BONDED_DT_SAFETY_LIMIT = 0.4
-
 #: Keys of retired options: older scenes (and the checkpoints written from them) carry them; they
 #: are dropped at load. ``[control] servo_gain`` was the gain of the engine's stress servo
 #: (removed; the protocol's servo, ``[protocol] servo_*``, holds the stresses).
@@ -368,16 +368,6 @@ def _check_derived(scene: Scene) -> None:
                 f"the {what} of this scene is {value!r}, not a finite positive number: "
                 f"check {_TIME_STEP_KEYS}"
             )
-
-
-def tangential_stiffness_limit(dt_safety: float) -> float:
-    """Largest k_t/k_n whose tangential spring the leapfrog step resolves at ``dt_safety``.
-
-    Two free discs (I = m r²/2) oscillate tangentially at ω_t = sqrt(3 k_t/k_n) ω_n, and Δt is
-    set from the normal contact alone, ω_n Δt = π dt_safety; leapfrog is stable for ω Δt < 2, so
-    k_t/k_n < (2 / (π dt_safety))² / 3: 6.0 at dt_safety 0.15, 0.84 at 0.4. (Elastic discs have
-    k_t/k_n = 2(1−ν)/(2−ν), 2/3 to 1 for ν from 1/2 to 0; the scenes use 0.2.)"""
-    return (2.0 / (math.pi * dt_safety)) ** 2 / 3.0
 
 
 def _check_tangential_stiffness(scene: Scene) -> None:

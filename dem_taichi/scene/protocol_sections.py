@@ -34,6 +34,7 @@ from dem_taichi.scene.base import field_range as _range
 from dem_taichi.scene.probing_sections import ProbingConfig as ProbingConfig
 from dem_taichi.scene.probing_sections import probing_settings as probing_settings
 from dem_taichi.scene.servo_keys import SERVO_KEYS
+from dem_taichi.scene.stability import BONDED_DT_SAFETY_LIMIT, tangential_stiffness_limit
 
 __all__ = ["ProtocolConfig", "protocol_settings", "parse_number_list"]
 
@@ -595,9 +596,7 @@ def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) 
     """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
     integration past what its own ``dt_safety`` is held to: the measured stability limit of
     bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
-    bound (:func:`dem_taichi.scene.config.tangential_stiffness_limit`)."""
-    from dem_taichi.scene.config import BONDED_DT_SAFETY_LIMIT, tangential_stiffness_limit
-
+    bound (:func:`dem_taichi.scene.stability.tangential_stiffness_limit`)."""
     if factor is None or factor <= 1.0:
         return
     dt_safety = scene.integration.dt_safety

@@ -1,0 +1,26 @@
+"""The time step's stability bounds that scenes are held to at load (a pure module, imported by
+the scene loader :mod:`dem_taichi.scene.config` and by the sections' own checks).
+
+- :data:`BONDED_DT_SAFETY_LIMIT`: the largest ``dt_safety`` of bonded rods, measured.
+- :func:`tangential_stiffness_limit`: the largest k_t/k_n the leapfrog step resolves.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["BONDED_DT_SAFETY_LIMIT", "tangential_stiffness_limit"]
+
+#: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
+#: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
+BONDED_DT_SAFETY_LIMIT = 0.4
+
+
+def tangential_stiffness_limit(dt_safety: float) -> float:
+    """Largest k_t/k_n whose tangential spring the leapfrog step resolves at ``dt_safety``.
+
+    Two free discs (I = m r²/2) oscillate tangentially at ω_t = sqrt(3 k_t/k_n) ω_n, and Δt is
+    set from the normal contact alone, ω_n Δt = π dt_safety; leapfrog is stable for ω Δt < 2, so
+    k_t/k_n < (2 / (π dt_safety))² / 3: 6.0 at dt_safety 0.15, 0.84 at 0.4. (Elastic discs have
+    k_t/k_n = 2(1−ν)/(2−ν), 2/3 to 1 for ν from 1/2 to 0; the scenes use 0.2.)"""
+    return (2.0 / (math.pi * dt_safety)) ** 2 / 3.0
