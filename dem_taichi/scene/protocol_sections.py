@@ -34,7 +34,7 @@ from dem_taichi.scene.base import field_range as _range
 from dem_taichi.scene.probing_sections import ProbingConfig as ProbingConfig
 from dem_taichi.scene.probing_sections import probing_settings as probing_settings
 from dem_taichi.scene.servo_keys import SERVO_KEYS
-from dem_taichi.scene.stability import BONDED_DT_SAFETY_LIMIT, tangential_stiffness_limit
+from dem_taichi.scene.stability import check_time_step_factor
 
 __all__ = ["ProtocolConfig", "protocol_settings", "parse_number_list"]
 
@@ -590,31 +590,6 @@ class ProtocolConfig(SceneSection):
     def radial_ratios(self) -> tuple[float, ...]:
         """η of the radial paths, parsed from ``radial_stress_ratios``."""
         return parse_number_list(self.radial_stress_ratios, "[protocol] radial_stress_ratios")
-
-
-def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) -> None:
-    """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
-    integration past what its own ``dt_safety`` is held to: the measured stability limit of
-    bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
-    bound (:func:`dem_taichi.scene.stability.tangential_stiffness_limit`)."""
-    if factor is None or factor <= 1.0:
-        return
-    dt_safety = scene.integration.dt_safety
-    effective = dt_safety * factor
-    if bonded and effective > BONDED_DT_SAFETY_LIMIT:
-        raise SceneError(
-            f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
-            f"{effective:.3g}, beyond the measured stability limit of bonded rods, "
-            f"{BONDED_DT_SAFETY_LIMIT}: allowed {key} <= {BONDED_DT_SAFETY_LIMIT / dt_safety:.3g}"
-        )
-    c = scene.contact
-    limit = tangential_stiffness_limit(effective)
-    if c.k_t > limit * c.k_n:
-        raise SceneError(
-            f"[protocol] {key} = {factor!r}: at dt_safety {effective:.3g} the tangential spring "
-            f"k_t = {c.k_t!r} ({c.k_t / c.k_n:.3g} × k_n) is beyond the leapfrog bound k_t/k_n "
-            f"<= {limit:.3g}: lower {key} or k_t"
-        )
 
 
 def protocol_settings(scene) -> ProtocolConfig:

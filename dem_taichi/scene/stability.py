@@ -3,13 +3,16 @@ the scene loader :mod:`dem_taichi.scene.config` and by the sections' own checks)
 
 - :data:`BONDED_DT_SAFETY_LIMIT`: the largest ``dt_safety`` of bonded rods, measured.
 - :func:`tangential_stiffness_limit`: the largest k_t/k_n the leapfrog step resolves.
+- :func:`check_time_step_factor`: a ``[protocol]`` time-step multiple held to both.
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["BONDED_DT_SAFETY_LIMIT", "tangential_stiffness_limit"]
+from dem_taichi.scene.base import SceneError
+
+__all__ = ["BONDED_DT_SAFETY_LIMIT", "tangential_stiffness_limit", "check_time_step_factor"]
 
 #: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
 #: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
@@ -24,3 +27,28 @@ def tangential_stiffness_limit(dt_safety: float) -> float:
     k_t/k_n < (2 / (π dt_safety))² / 3: 6.0 at dt_safety 0.15, 0.84 at 0.4. (Elastic discs have
     k_t/k_n = 2(1−ν)/(2−ν), 2/3 to 1 for ν from 1/2 to 0; the scenes use 0.2.)"""
     return (2.0 / (math.pi * dt_safety)) ** 2 / 3.0
+
+
+def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) -> None:
+    """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
+    integration past what its own ``dt_safety`` is held to: the measured stability limit of
+    bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
+    bound (:func:`tangential_stiffness_limit`)."""
+    if factor is None or factor <= 1.0:
+        return
+    dt_safety = scene.integration.dt_safety
+    effective = dt_safety * factor
+    if bonded and effective > BONDED_DT_SAFETY_LIMIT:
+        raise SceneError(
+            f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
+            f"{effective:.3g}, beyond the measured stability limit of bonded rods, "
+            f"{BONDED_DT_SAFETY_LIMIT}: allowed {key} <= {BONDED_DT_SAFETY_LIMIT / dt_safety:.3g}"
+        )
+    c = scene.contact
+    limit = tangential_stiffness_limit(effective)
+    if c.k_t > limit * c.k_n:
+        raise SceneError(
+            f"[protocol] {key} = {factor!r}: at dt_safety {effective:.3g} the tangential spring "
+            f"k_t = {c.k_t!r} ({c.k_t / c.k_n:.3g} × k_n) is beyond the leapfrog bound k_t/k_n "
+            f"<= {limit:.3g}: lower {key} or k_t"
+        )
