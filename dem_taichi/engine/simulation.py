@@ -38,6 +38,14 @@ per-rod gather of the pair forces (each pair evaluated twice, no atomics): deter
 parallel, for GPUs. ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` picks the
 serial path on CPU and the gather path on GPU.
 
+``list_build`` (parallel and gather paths): ``"serial"`` builds the neighbour list on one thread
+(:func:`dem_taichi.kernels.neighbours.rebuild_lists`), ``"parallel"`` with parallel loops
+(:mod:`dem_taichi.kernels.parallel_lists`: the same list, entry for entry, so the same state bit
+for bit on the deterministic gather path); ``None`` (default): parallel on a GPU, serial on a
+CPU, whose threads pay a fixed cost per parallel loop that the dozen loops of the parallel build
+would add to every step (benchmarks/results/gpu_bench.md). The serial path always builds
+serially.
+
 Cell control
 ------------
 Each axis is strain-controlled: a prescribed logarithmic strain rate ε̇ = −L̇/L (compression
@@ -138,6 +146,7 @@ class Simulation:
         execution: str | None = None,
         initial: GasState | None = None,
         neighbour_capacity: int | None = None,
+        list_build: str | None = None,
     ) -> None:
         if not isinstance(scene, Scene):  # a built-in scene name or a TOML path
             scene = load_scene(scene)
@@ -155,6 +164,11 @@ class Simulation:
             execution = "serial" if arch == "cpu" else "parallel"
         self.execution = execution
         self.full_list = execution == "gather"
+        list_build = list_build or ("parallel" if arch == "gpu" else "serial")
+        if list_build not in ("serial", "parallel"):
+            raise ValueError(f"list_build = {list_build!r}: allowed values are serial|parallel")
+        #: how the parallel and gather paths build the neighbour list (module docstring)
+        self.list_build = list_build
         if scene.integration.relaxation_method == "fire" and execution != "serial":
             raise ValueError(
                 f'[integration] relaxation = "fire" needs the serial execution; execution = '
@@ -414,12 +428,18 @@ class Simulation:
         self._prime()
 
     def _prime(self) -> None:
+        from dem_taichi.kernels.common import place_all_discs
+        from dem_taichi.kernels.parallel_lists import prime_forces_parallel, rebuild_parallel
         from dem_taichi.kernels.step import prime_forces
 
+        ns, full, phys = self.body.n_spheres, self.full_list, self.physics
         for _ in range(8):
-            self._launch(
-                prime_forces, ns=self.body.n_spheres, full=self.full_list, phys=self.physics
-            )
+            if self.execution != "serial" and self.list_build == "parallel":
+                self._launch(place_all_discs, ns=ns)
+                self._launch(rebuild_parallel, ns=ns, full=full, phys=phys, advance=False)
+                self._launch(prime_forces_parallel, ns=ns, full=full, phys=phys)
+            else:
+                self._launch(prime_forces, ns=ns, full=full, phys=phys)
             if not self._handle_flags(0):
                 return
         raise CapacityError("could not build the neighbour list")  # pragma: no cover
@@ -500,7 +520,11 @@ class Simulation:
         """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up);
         ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
         from dem_taichi.kernels import parallel as K
+        from dem_taichi.kernels.parallel_lists import rebuild_parallel
         from dem_taichi.kernels.step import run_steps_serial
+
+        rebuild = rebuild_parallel if self.list_build == "parallel" else K.rebuild_if_needed
+        build = {"advance": True} if self.list_build == "parallel" else {}
 
         done = 0
         while done < n_steps:
@@ -518,7 +542,7 @@ class Simulation:
                 self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
             else:
                 for _ in range(todo):
-                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list, phys=self.physics)
+                    self._launch(rebuild, ns=ns, full=self.full_list, phys=self.physics, **build)
                     self._launch(K.kick_drift_parallel, ns=ns)
                     if self.full_list:
                         self._launch(K.forces_gather, ns=ns, phys=self.physics)

@@ -113,6 +113,11 @@ F_BLOWUP = 5  # 0 = fine, 1 = non-finite state, 2 = overlap beyond the bound
 F_REBUILDS = 6  # number of list builds
 F_STEPS = 7  # steps done in the current call
 F_BLOWUP_INDEX = 8  # rod (code 1) or disc (code 2) that triggered the blow-up
+# the parallel list build's decisions, shared by its loops and zero between launches
+# (dem_taichi.kernels.parallel_lists)
+F_BUILD_NOW = 9  # 1: the list is rebuilt in this step
+F_BUILD_SAVE = 10  # 1: and the old list is moved to the old buffers first
+F_BUILD_OVERFLOW = 11  # 1: a disc found more neighbours than the capacity
 N_FLAGS = 12
 
 BLOWUP_NONFINITE = 1
