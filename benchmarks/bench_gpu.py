@@ -297,6 +297,14 @@ def suite(args: argparse.Namespace) -> None:
         "concurrent 4 gpu",
         dict(gpu, tiles=9, list_build="serial"),
     ]
+    if args.plan == "rerun":  # the parallel path after a kernel change, by size
+        plan = [dict(gpu, tiles=k, list_build="parallel") for k in (1, 2, 4, 8, 9, 18)]
+        plan += [
+            dict(gpu, tiles=9, list_build="parallel", execution="gather"),
+            dict(gpu, tiles=9, list_build="parallel", precision="f32"),
+            "concurrent 8 gpu",
+            dict(gpu, tiles=36, list_build="parallel"),
+        ]
     for options in plan:
         if isinstance(options, str):
             _, processes, arch = options.split()
@@ -350,6 +358,7 @@ def main() -> None:
     p.add_argument("--out", required=True)
     p.add_argument("--budget", type=float, default=420.0, help="seconds for the whole suite")
     p.add_argument("--arch", default="gpu", choices=("cpu", "gpu"), help="cpu: a dry run")
+    p.add_argument("--plan", default="full", choices=("full", "rerun"))
     p.add_argument("--steps", type=int, default=3000)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--case-timeout", type=float, default=75.0)

@@ -28,7 +28,7 @@ timeout 150 python3 -m pytest -q -p no:cacheprovider -n 3 -m gpu \
 left=$((DEADLINE - ($(date +%s) - t0)))
 echo "tests done at $(($(date +%s) - t0)) s; $left s left for the suite"
 timeout "$left" python3 benchmarks/bench_gpu.py suite \
-    --state .gpu/gpu_state.npz --out "$OUT" --budget $((left - 20)) 2>&1 \
+    --state .gpu/gpu_state.npz --out "$OUT" --budget $((left - 20)) --plan "${PLAN:-full}" 2>&1 \
     | tee "$OUT/suite.log" | cut -c1-300
 python3 benchmarks/bench_gpu.py table "$OUT/cases.jsonl" > "$OUT/table.md"
 cat "$OUT/table.md"

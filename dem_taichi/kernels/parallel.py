@@ -124,8 +124,13 @@ def kick_drift_parallel(
                 params,
                 flags,
             )
-            ti.atomic_max(cell[C_DISP], disp)
-            ti.atomic_max(cell[C_VMAX], speed)
+            # every rod would contend for the same two addresses (a compare-and-swap loop for a
+            # float max): 58 steps/s at 123,120 rods on an H200, the rate falling as 1/N
+            # (benchmarks/results/gpu_bench.md); only a rod above the running max contends
+            if disp > cell[C_DISP]:
+                ti.atomic_max(cell[C_DISP], disp)
+            if speed > cell[C_VMAX]:
+                ti.atomic_max(cell[C_VMAX], speed)
 
 
 @ti.kernel
