@@ -113,6 +113,7 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("bond_intact", _I, ("rods",), "state", "bond_intact"),
     DeviceArray("fire", _R, (L.N_FIRE,), "work"),
     DeviceArray("measures", _R, (L.N_MEASURES,), "output"),
+    DeviceArray("block_sums", _R, ("measure_blocks", L.N_MEASURES), "work"),
     DeviceArray("rod_contacts", _I, ("rods",), "output"),
     DeviceArray("pair_out", _R, ("discs", "capacity", 4), "output"),
     DeviceArray("pair_flags", _I, ("discs", "capacity"), "output"),

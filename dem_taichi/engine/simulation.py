@@ -231,6 +231,10 @@ class Simulation:
         self._sizes["rolling_discs"] = m if self.physics.rolling else 1
         self._sizes["species"] = self.geometry.n_spheres
         self._sizes["cells"] = cells_axis
+        # the parallel measure's block rows (kernels.measures.measure_sums_blocked); one unused
+        # row on the serial path
+        blocked = self.execution != "serial"
+        self._sizes["measure_blocks"] = L.measure_block_rows(n, m, self.bonded) if blocked else 1
         self._dtypes = {"real": real, "i32": ti.i32}
         self.a: dict[str, Any] = allocate_arrays(self._sizes, self._dtypes)
         self.a["offsets"].from_numpy(self.body.offsets.astype(self._real))

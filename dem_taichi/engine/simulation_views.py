@@ -72,10 +72,14 @@ class SimulationViews:
         return EngineParameters.from_vector(self.a["params"].to_numpy())
 
     def _measure_sums(self) -> np.ndarray:
-        from dem_taichi.kernels.measures import measure_sums
+        from dem_taichi.kernels.measures import measure_sums, measure_sums_blocked
 
         t0 = _time.perf_counter()
-        self._launch(measure_sums, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
+        # the parallel and gather paths sum in blocks (their block rows are allocated, > 1): on a
+        # GPU one thread over every pair costs more than the steps between two measures
+        blocked = self.a["block_sums"].shape[0] > 1
+        kernel = measure_sums_blocked if blocked else measure_sums
+        self._launch(kernel, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
         sums = self.a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
         return sums

@@ -158,6 +158,15 @@ M_INTERACTING = 13  # number of interacting pairs (contact or non-zero long-rang
 M_U_BOND = 14  # Σ bond elastic energy (bonded rods)
 M_BROKEN = 15  # number of broken bonds (bonded rods)
 N_MEASURES = 16
+#: rods, discs or bonds summed by one thread of kernels.measures.measure_sums_blocked
+MEASURE_BLOCK = 64
+
+
+def measure_block_rows(n_bodies: int, n_discs: int, bonded: bool) -> int:
+    """Rows of the parallel measure's ``block_sums``: the body, disc and bond blocks."""
+    bodies = -(-n_bodies // MEASURE_BLOCK)
+    return bodies + -(-n_discs // MEASURE_BLOCK) + (bodies if bonded else 0)
+
 
 # neighbour entries ----------------------------------------------------------------------------
 # entry = j * IMAGE_CODES + code, code = (m_x + IMAGE_RANGE) * IMAGE_SIDE + (m_y + IMAGE_RANGE),

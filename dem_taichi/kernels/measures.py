@@ -1,11 +1,18 @@
-"""The measure kernel: serial sums of stress, energies, counts and forces (deterministic order),
-and the force and ``layout.PAIR_*`` bits of every list entry for the host.
+"""The measure kernels: sums of stress, energies, counts and forces, and the force and
+``layout.PAIR_*`` bits of every list entry for the host.
+
+``measure_sums`` (the serial path) sums on one thread in a fixed order. ``measure_sums_blocked``
+(the parallel and gather paths) gives each thread a block of ``MEASURE_BLOCK`` rods, discs or
+bonds, summed in order into its row of ``block_sums``, then adds the rows in order on one
+thread: deterministic too, and the same sums to round-off (another order of additions), without
+the one-thread pass over every pair that a GPU runs far slower than a CPU core
+(benchmarks/results/gpu_bench.md). Both use the same per-rod, per-pair and per-bond functions.
 """
 
 import taichi as ti
 
 from dem_taichi.kernels.bonds import bond_interaction
-from dem_taichi.kernels.common import nd1, nd2, nd3
+from dem_taichi.kernels.common import T, nd1, nd2, nd3
 from dem_taichi.kernels.layout import (
     IMAGE_CODES,
     M_BROKEN,
@@ -24,6 +31,7 @@ from dem_taichi.kernels.layout import (
     M_U_BOND,
     M_U_CONTACT,
     M_U_LONG,
+    MEASURE_BLOCK,
     P_DT,
     P_INERTIA,
     P_MASS,
@@ -34,6 +42,38 @@ from dem_taichi.kernels.layout import (
     PAIR_SLIDING,
 )
 from dem_taichi.kernels.pairs import pair_interaction
+
+
+@ti.func
+def rod_sums(r, vel: T, omega: T, force: T, torque: T, params: T):
+    """Rod ``r``'s kinetic energies (full-step velocities of velocity Verlet: v(t) = v(t − Δt/2)
+    + Δt/2 F(t)/M) and the magnitude of its resultant force."""
+    dt = params[P_DT]
+    mass = params[P_MASS]
+    inertia = params[P_INERTIA]
+    vx = vel[r, 0] + 0.5 * dt * force[r, 0] / mass
+    vy = vel[r, 1] + 0.5 * dt * force[r, 1] / mass
+    w = omega[r] + 0.5 * dt * torque[r] / inertia
+    ke = 0.5 * mass * (vx * vx + vy * vy)
+    ke_rot = 0.5 * inertia * w * w
+    return ke, ke_rot, ti.sqrt(force[r, 0] ** 2 + force[r, 1] ** 2)
+
+
+@ti.func
+def pair_bits(phys: T, active, delta, fc, ft, la, params: T):
+    """The ``PAIR_*`` bits of a list entry from its interaction."""
+    bits = 0
+    if active == 1:
+        if delta > 0.0:
+            bits |= PAIR_CONTACT
+            if ti.static(phys.friction):
+                if ti.abs(ft) >= params[P_MU] * ti.abs(fc) * (1.0 - 1e-6):
+                    bits |= PAIR_SLIDING
+        if la == 1:
+            bits |= PAIR_LONG_RANGE
+        if bits != 0:
+            bits |= PAIR_INTERACTING
+    return bits
 
 
 @ti.kernel
@@ -79,17 +119,11 @@ def measure_sums(
             measures[q] = 0.0
         for r in range(n_rods):
             rod_contacts[r] = 0
-        dt = params[P_DT]
-        mass = params[P_MASS]
-        inertia = params[P_INERTIA]
         for r in range(n_rods):
-            # full-step velocities of velocity Verlet: v(t) = v(t − Δt/2) + Δt/2 F(t)/M
-            vx = vel[r, 0] + 0.5 * dt * force[r, 0] / mass
-            vy = vel[r, 1] + 0.5 * dt * force[r, 1] / mass
-            w = omega[r] + 0.5 * dt * torque[r] / inertia
-            measures[M_KE_TRANS] += 0.5 * mass * (vx * vx + vy * vy)
-            measures[M_KE_ROT] += 0.5 * inertia * w * w
-            measures[M_SUM_ROD_FORCE] += ti.sqrt(force[r, 0] ** 2 + force[r, 1] ** 2)
+            ke, ke_rot, f_rod = rod_sums(r, vel, omega, force, torque, params)
+            measures[M_KE_TRANS] += ke
+            measures[M_KE_ROT] += ke_rot
+            measures[M_SUM_ROD_FORCE] += f_rod
         for i in range(n_discs):
             rod_i = i // ns
             for k in range(nbr_count[i]):
@@ -119,7 +153,7 @@ def measure_sums(
                         params,
                     )
                 )
-                bits = 0
+                bits = pair_bits(phys, active, delta, fc, ft, la, params)
                 if active == 1:
                     measures[M_SXX] += fx * bx
                     measures[M_SXY] += fx * by
@@ -127,20 +161,15 @@ def measure_sums(
                     measures[M_SYY] += fy * by
                     measures[M_U_CONTACT] += uc
                     measures[M_U_LONG] += ul
-                    if delta > 0.0:
-                        bits |= PAIR_CONTACT
+                    if bits & PAIR_CONTACT:
                         measures[M_CONTACTS] += 1.0
                         rod_contacts[rod_i] += 1
                         rod_contacts[j // ns] += 1
-                        if ti.static(phys.friction):
-                            if ti.abs(ft) >= params[P_MU] * ti.abs(fc) * (1.0 - 1e-6):
-                                bits |= PAIR_SLIDING
-                                measures[M_SLIDING] += 1.0
-                    if la == 1:
-                        bits |= PAIR_LONG_RANGE
+                    if bits & PAIR_SLIDING:
+                        measures[M_SLIDING] += 1.0
+                    if bits & PAIR_LONG_RANGE:
                         measures[M_LONG_PAIRS] += 1.0
                     if bits != 0:
-                        bits |= PAIR_INTERACTING
                         measures[M_INTERACTING] += 1.0
                         measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
                 pair_out[i, k, 0] = fx
@@ -164,3 +193,117 @@ def measure_sums(
                         measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
                     else:
                         measures[M_BROKEN] += 1.0
+
+
+@ti.kernel
+def measure_sums_blocked(
+    ns: ti.template(),
+    full: ti.template(),
+    phys: ti.template(),
+    pos: nd2,
+    angle: nd1,
+    vel: nd2,
+    omega: nd1,
+    force: nd2,
+    torque: nd1,
+    disc_x: nd2,
+    disc_off: nd2,
+    offsets: nd1,
+    nbr: nd2,
+    nbr_xi: nd2,
+    nbr_psi: nd2,
+    nbr_count: nd1,
+    charge: nd1,
+    pair_table: nd3,
+    bond_intact: nd1,
+    cell: nd1,
+    params: nd1,
+    measures: nd1,
+    rod_contacts: nd1,
+    pair_out: nd3,
+    pair_flags: nd2,
+    block_sums: nd2,
+):
+    """The sums and per-entry data of :func:`measure_sums`, in parallel: each thread sums a block
+    of ``MEASURE_BLOCK`` rods, discs or bonds in order into its row of ``block_sums`` (rows: the
+    rod blocks, then the disc blocks, then the bond blocks), then one thread adds the rows in
+    order. Deterministic; equal to the serial sums to round-off."""
+    n_rods = vel.shape[0]
+    n_discs = n_rods * ns
+    rod_blocks = (n_rods + MEASURE_BLOCK - 1) // MEASURE_BLOCK
+    disc_blocks = (n_discs + MEASURE_BLOCK - 1) // MEASURE_BLOCK
+    for b, q in ti.ndrange(block_sums.shape[0], block_sums.shape[1]):
+        block_sums[b, q] = 0.0
+    for r in range(n_rods):
+        rod_contacts[r] = 0
+    for b in range(rod_blocks):
+        for r in range(b * MEASURE_BLOCK, ti.min((b + 1) * MEASURE_BLOCK, n_rods)):
+            ke, ke_rot, f_rod = rod_sums(r, vel, omega, force, torque, params)
+            block_sums[b, M_KE_TRANS] += ke
+            block_sums[b, M_KE_ROT] += ke_rot
+            block_sums[b, M_SUM_ROD_FORCE] += f_rod
+    for d in range(disc_blocks):
+        row = rod_blocks + d
+        for i in range(d * MEASURE_BLOCK, ti.min((d + 1) * MEASURE_BLOCK, n_discs)):
+            rod_i = i // ns
+            for k in range(nbr_count[i]):
+                listed = True
+                if ti.static(full):
+                    if nbr[i, k] // IMAGE_CODES < i:
+                        pair_flags[i, k] = 0
+                        listed = False
+                if listed:
+                    fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
+                        pair_interaction(
+                            ns, phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr,
+                            nbr_xi, nbr_psi, charge, pair_table, bond_intact, cell, params,
+                        )
+                    )  # fmt: skip
+                    bits = pair_bits(phys, active, delta, fc, ft, la, params)
+                    if active == 1:
+                        block_sums[row, M_SXX] += fx * bx
+                        block_sums[row, M_SXY] += fx * by
+                        block_sums[row, M_SYX] += fy * bx
+                        block_sums[row, M_SYY] += fy * by
+                        block_sums[row, M_U_CONTACT] += uc
+                        block_sums[row, M_U_LONG] += ul
+                        if bits & PAIR_CONTACT:
+                            block_sums[row, M_CONTACTS] += 1.0
+                            ti.atomic_add(rod_contacts[rod_i], 1)
+                            ti.atomic_add(rod_contacts[j // ns], 1)
+                        if bits & PAIR_SLIDING:
+                            block_sums[row, M_SLIDING] += 1.0
+                        if bits & PAIR_LONG_RANGE:
+                            block_sums[row, M_LONG_PAIRS] += 1.0
+                        if bits != 0:
+                            block_sums[row, M_INTERACTING] += 1.0
+                            block_sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+                    pair_out[i, k, 0] = fx
+                    pair_out[i, k, 1] = fy
+                    pair_out[i, k, 2] = fc
+                    pair_out[i, k, 3] = ft
+                    pair_flags[i, k] = bits
+    if ti.static(phys.bonded):
+        chain = ti.static(phys.chain)
+        for b in range(rod_blocks):
+            row = rod_blocks + disc_blocks + b
+            for g in range(b * MEASURE_BLOCK, ti.min((b + 1) * MEASURE_BLOCK, n_rods)):
+                if g % chain != chain - 1:
+                    if bond_intact[g] == 1:
+                        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
+                            g, pos, angle, vel, omega, cell, params
+                        )
+                        block_sums[row, M_SXX] += fx * dx
+                        block_sums[row, M_SXY] += fx * dy
+                        block_sums[row, M_SYX] += fy * dx
+                        block_sums[row, M_SYY] += fy * dy
+                        block_sums[row, M_U_BOND] += energy
+                        block_sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+                    else:
+                        block_sums[row, M_BROKEN] += 1.0
+    ti.loop_config(serialize=True)
+    for q in range(measures.shape[0]):
+        total = 0.0
+        for b in range(block_sums.shape[0]):
+            total += block_sums[b, q]
+        measures[q] = total

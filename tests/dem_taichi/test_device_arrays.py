@@ -15,7 +15,7 @@ from dem_taichi.engine.device_arrays import (
 from dem_taichi.engine.state import STATE_KEYS
 
 #: Compile-time and scalar kernel parameters the engine passes by name.
-SCALARS = {"ns", "full", "phys", "n_steps", "count_step"}
+SCALARS = {"ns", "full", "phys", "n_steps", "count_step", "advance"}
 
 
 def test_names_and_state_keys_are_unique():
@@ -29,6 +29,7 @@ def test_names_and_state_keys_are_unique():
 def test_shapes_follow_the_sizes():
     sizes = {"rods": 3, "discs": 15, "spheres": 5, "species": 5, "capacity": 7, "cells": 4}
     sizes["rolling_discs"] = 1  # no rolling resistance: the rolling springs take one row
+    sizes["measure_blocks"] = 2
     shapes = {a.name: a.shape_for(sizes) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (3, 2) and shapes["nbr"] == (15, 7) and shapes["pair_out"] == (15, 7, 4)
     assert shapes["nbr_psi"] == (1, 7) and shapes["old_psi"] == (1, 7)
@@ -36,9 +37,11 @@ def test_shapes_follow_the_sizes():
     # bonded rods: the bodies are the discs, one disc per body, the species per place in a rod
     bonded = {"rods": 15, "discs": 15, "spheres": 1, "species": 5, "capacity": 7, "cells": 4}
     bonded["rolling_discs"] = 15  # with rolling resistance: one spring per list entry
+    bonded["measure_blocks"] = 3
     shapes = {a.name: a.shape_for(bonded) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (15, 2) and shapes["offsets"] == (1,) and shapes["charge"] == (5,)
     assert shapes["bond_intact"] == (15,) and shapes["nbr_psi"] == (15, 7)
+    assert shapes["block_sums"] == (3, 16)
     grown = {a.name for a in DEVICE_ARRAYS if a.grows}
     assert grown == {
         "nbr", "nbr_xi", "nbr_psi", "old_nbr", "old_xi", "old_psi", "pair_out", "pair_flags"
@@ -50,14 +53,15 @@ def test_shapes_follow_the_sizes():
 def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
     pytest.importorskip("taichi")
     from dem_taichi.kernels import bonds, common, measures, neighbours, pairs, parallel, step
+    from dem_taichi.kernels import parallel_lists as lists
 
     kernels = [
         obj
-        for module in (bonds, common, measures, neighbours, pairs, parallel, step)
+        for module in (bonds, common, measures, neighbours, pairs, parallel, lists, step)
         for _, obj in inspect.getmembers(module, inspect.isfunction)
         if obj.__module__ == module.__name__ and hasattr(obj, "_primal")
     ]
-    assert len(kernels) == 8
+    assert len(kernels) == 11
     declared = {a.name for a in DEVICE_ARRAYS}
     for kernel in kernels:
         unknown = set(kernel_parameters(kernel)) - declared - SCALARS
@@ -66,12 +70,13 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
 
 def test_every_kernel_array_parameter_has_the_dimension_of_the_table():
     pytest.importorskip("taichi")
-    from dem_taichi.kernels import common, measures, parallel, step
+    from dem_taichi.kernels import common, measures, parallel, parallel_lists, step
 
     shapes = {a.name: a.shape for a in DEVICE_ARRAYS}
     kernels = [step.run_steps_serial, parallel.rebuild_if_needed, parallel.kick_drift_parallel,
                parallel.forces_parallel, parallel.forces_gather, step.prime_forces,
-               measures.measure_sums, common.place_all_discs]  # fmt: skip
+               measures.measure_sums, common.place_all_discs, parallel_lists.rebuild_parallel,
+               parallel_lists.prime_forces_parallel, measures.measure_sums_blocked]  # fmt: skip
     checked = 0
     for kernel in kernels:
         for name, parameter in inspect.signature(kernel).parameters.items():
