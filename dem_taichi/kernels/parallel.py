@@ -124,9 +124,9 @@ def kick_drift_parallel(
                 params,
                 flags,
             )
-            # every rod would contend for the same two addresses (a compare-and-swap loop for a
-            # float max): 58 steps/s at 123,120 rods on an H200, the rate falling as 1/N
-            # (benchmarks/results/gpu_bench.md); only a rod above the running max contends
+            # only a rod above the running max contends for the two addresses (a float max is
+            # a compare-and-swap loop); measured on an H200 it changed nothing at 123,120 rods
+            # (benchmarks/results/gpu_bench.md), and the maxima are the same either way
             if disp > cell[C_DISP]:
                 ti.atomic_max(cell[C_DISP], disp)
             if speed > cell[C_VMAX]:
