@@ -83,6 +83,7 @@ class CostEstimate:
 
 def _memory_bytes(scene, precision: str) -> float:
     from dem_taichi.engine.device_arrays import DEVICE_ARRAYS
+    from dem_taichi.kernels.layout import measure_block_rows
 
     p = scene.particles
     bonded = p.rod_model == "bonded"
@@ -107,6 +108,8 @@ def _memory_bytes(scene, precision: str) -> float:
         "capacity": capacity,
         "cells": cells,
         "rolling_discs": discs if scene.rolling_parameters.enabled else 1,
+        # the parallel paths' block sums of the measure (one row on the serial path)
+        "measure_blocks": measure_block_rows(bodies, discs, bonded) if full else 1,
     }
     real = 8 if precision == "f64" else 4
     total = 0.0
