@@ -32,6 +32,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -282,8 +283,9 @@ def suite(args: argparse.Namespace) -> None:
     def left() -> float:
         return args.budget - (time.perf_counter() - t_start)
 
-    gpu = dict(arch=args.arch, steps=args.steps, seconds=args.seconds)
-    plan = [
+    gpu: dict[str, Any] = dict(arch=args.arch, steps=args.steps, seconds=args.seconds)
+    # a case's options (one process), or "concurrent N arch" (N replicas at once)
+    plan: list[dict[str, Any] | str] = [
         # the serial against the parallel list build, by size (k × k tiles of 1520 rods)
         dict(gpu, tiles=1, list_build="parallel"),
         dict(gpu, tiles=1, list_build="serial"),
