@@ -1,5 +1,6 @@
 """The half (or full) Verlet neighbour list from cell lists across periodic images, and the
-rebuild criterion (serial code: called from inside a serial loop).
+rebuild criterion: ``rebuild_lists`` is serial code (called from inside a serial loop), built
+from per-disc functions that :mod:`dem_taichi.kernels.parallel_lists` runs in parallel loops.
 
 Entries pack disc j with its periodic image (``layout.IMAGE_*``); the tangential springs ξ (and
 the rolling springs ψ) of the previous list are carried to the pairs that remain.
