@@ -95,7 +95,9 @@ def _memory_bytes(scene, precision: str) -> float:
     if lr.enabled:
         reach += max(lr.f_max_edge / lr.k_a_edge, lr.f_max_inner / lr.k_a_inner)
     radius = (reach + scene.integration.skin) / d
-    full = scene.integration.execution in ("parallel", "gather")  # "auto" on a CPU: serial
+    # "auto" on a CPU: serial; the gather path keeps the full list (each pair twice)
+    parallel = scene.integration.execution in ("parallel", "gather")
+    full = scene.integration.execution == "gather"
     capacity = 1.5 * (2 if full else 1) * (int(2.2 * radius * radius) + 6)  # grown once
     rod_area = (p.n_spheres - 1) * p.spacing * d + math.pi * d * d / 4
     box = math.sqrt(p.n_rods * rod_area / p.initial_area_fraction)
@@ -109,7 +111,7 @@ def _memory_bytes(scene, precision: str) -> float:
         "cells": cells,
         "rolling_discs": discs if scene.rolling_parameters.enabled else 1,
         # the parallel paths' block sums of the measure (one row on the serial path)
-        "measure_blocks": measure_block_rows(bodies, discs, bonded) if full else 1,
+        "measure_blocks": measure_block_rows(bodies, discs, bonded) if parallel else 1,
     }
     real = 8 if precision == "f64" else 4
     total = 0.0

@@ -13,12 +13,14 @@ from dem_taichi.scene.config import load_scene, scene_with_overrides
 from dem_taichi.scene.options import with_preset
 
 
-def test_memory_estimate_brackets_the_engine_allocation():
+@pytest.mark.parametrize("execution", ["auto", "parallel", "gather"])
+def test_memory_estimate_brackets_the_engine_allocation(execution):
     """The arrays' bytes summed from the device-array table for the scene are those the engine
-    allocates, but for the neighbour capacity (taken at 1.5× its start value)."""
+    allocates, but for the neighbour capacity (taken at 1.5× its start value): on the serial
+    path, the parallel one (block rows of the measure) and the gather one (the full list)."""
     from dem_taichi.engine.simulation import Simulation
 
-    scene = load_scene("smoke")
+    scene = load_scene("smoke").replace(integration={"execution": execution})
     sim = Simulation(scene)
     allocated = sum(
         math.prod(sim.a[name].shape) * (8 if "f64" in str(sim.a[name].dtype) else 4)
