@@ -8,6 +8,7 @@
 #                           library and examples, xz-compressed to fit the 64 MiB transfer)
 #   .gpu/*.whl              netCDF4, cftime, dill, pint (+ flexcache, flexparser, platformdirs)
 #   .gpu/gpu_state.npz      bench_gpu.py prepare --out .gpu/gpu_state.npz
+# benchmarks/gpu_pack.sh builds all three here.
 set -u
 OUT=${OUT:-/tmp/gpu_out}
 mkdir -p "$OUT" /tmp/site
