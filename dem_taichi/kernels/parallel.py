@@ -124,13 +124,8 @@ def kick_drift_parallel(
                 params,
                 flags,
             )
-            # only a rod above the running max contends for the two addresses (a float max is
-            # a compare-and-swap loop); measured on an H200 it changed nothing at 123,120 rods
-            # (benchmarks/results/gpu_bench.md), and the maxima are the same either way
-            if disp > cell[C_DISP]:
-                ti.atomic_max(cell[C_DISP], disp)
-            if speed > cell[C_VMAX]:
-                ti.atomic_max(cell[C_VMAX], speed)
+            ti.atomic_max(cell[C_DISP], disp)
+            ti.atomic_max(cell[C_VMAX], speed)
 
 
 @ti.kernel
