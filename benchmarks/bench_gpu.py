@@ -117,14 +117,14 @@ def case(args: argparse.Namespace) -> None:
     if args.start_at:  # concurrent replicas: start the timed window together
         time.sleep(max(0.0, args.start_at - time.time()))
     started = time.time()
-    rebuilds0 = int(sim.get_state()["flags"][layout.F_REBUILDS])
+    rebuilds0 = int(sim.a["flags"].to_numpy()[layout.F_REBUILDS])
     steps = 0
     t0 = time.perf_counter()
     while steps < args.steps and time.perf_counter() - t0 < args.seconds:
         sim.run(args.chunk, control=control, output_every=10**12)
         steps += args.chunk
     wall = time.perf_counter() - t0
-    rebuilds = int(sim.get_state()["flags"][layout.F_REBUILDS]) - rebuilds0
+    rebuilds = int(sim.a["flags"].to_numpy()[layout.F_REBUILDS]) - rebuilds0
     build_s = build_seconds(sim, layout)
     measure_times = []
     for _ in range(3):
