@@ -25,6 +25,7 @@ export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
 DEADLINE=${DEADLINE:-510}  # seconds for the whole script
 timeout 150 python3 -m pytest -q -p no:cacheprovider -n 3 -m gpu \
     tests/dem_taichi/test_engine_precision.py tests/dem_taichi/test_parallel_lists.py \
+    tests/dem_taichi/test_parallel_measures.py \
     2>&1 | tail -15 | tee "$OUT/pytest.log"
 left=$((DEADLINE - ($(date +%s) - t0)))
 echo "tests done at $(($(date +%s) - t0)) s; $left s left for the suite"

@@ -21,7 +21,10 @@ start of every minimising call: work, not state.
 
 Roles: ``state`` (the dynamical state, restored bit for bit), ``constant`` (set once from the
 scene), ``derived`` (recomputed from the state: disc positions), ``work`` (kernel scratch: cell
-lists, the previous neighbour list), ``output`` (written by the measure kernel for the host).
+lists, the previous neighbour list), ``output`` (written by the measure kernels for the host).
+``rod_alive``, ``rod_count`` and ``coordination`` (the mechanical coordination counted on the
+device, the parallel and gather paths: :mod:`dem_taichi.kernels.coordination`) are sized by the
+bodies, of which the rods are the first N.
 """
 
 from __future__ import annotations
@@ -115,6 +118,9 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("measures", _R, (L.N_MEASURES,), "output"),
     DeviceArray("block_sums", _R, ("measure_blocks", L.N_MEASURES), "work"),
     DeviceArray("rod_contacts", _I, ("rods",), "output"),
+    DeviceArray("rod_alive", _I, ("rods",), "work"),
+    DeviceArray("rod_count", _I, ("rods",), "work"),
+    DeviceArray("coordination", _I, (L.N_COORDINATION,), "output"),
     DeviceArray("pair_out", _R, ("discs", "capacity", 4), "output"),
     DeviceArray("pair_flags", _I, ("discs", "capacity"), "output"),
 )

@@ -71,14 +71,19 @@ class SimulationViews:
         """The runtime parameters in the device array ``params``."""
         return EngineParameters.from_vector(self.a["params"].to_numpy())
 
+    @property
+    def _on_device(self) -> bool:
+        """Whether the measures are summed in blocks and Z_m counted on the device: the parallel
+        and gather paths (their block rows are allocated, > 1; the serial path has one). On a
+        GPU one thread over every pair, or a host copy of the list, costs more than the 100
+        steps between two measures (benchmarks/results/gpu_bench.md)."""
+        return self.a["block_sums"].shape[0] > 1
+
     def _measure_sums(self) -> np.ndarray:
         from dem_taichi.kernels.measures import measure_sums, measure_sums_blocked
 
         t0 = _time.perf_counter()
-        # the parallel and gather paths sum in blocks (their block rows are allocated, > 1): on a
-        # GPU one thread over every pair costs more than the steps between two measures
-        blocked = self.a["block_sums"].shape[0] > 1
-        kernel = measure_sums_blocked if blocked else measure_sums
+        kernel = measure_sums_blocked if self._on_device else measure_sums
         self._launch(kernel, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
         sums = self.a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
@@ -201,8 +206,26 @@ class SimulationViews:
         return rod_i[other], rod_j[other]
 
     def _mechanical_coordination(self) -> float:
-        i, _, packed, bits = self._contact_pairs()
-        return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
+        """Z_m: on the host from the copied list (the serial path), or counted on the device
+        (the parallel and gather paths, :mod:`dem_taichi.kernels.coordination`: at 10⁵ rods
+        the copy costs more than 100 GPU steps); the same integers, so the same value."""
+        if not self._on_device:
+            i, _, packed, bits = self._contact_pairs()
+            return mechanical_coordination(i, packed, bits, self.geometry.n_spheres, self.n_rods)
+        return self._device_coordination()
+
+    def _device_coordination(self) -> float:
+        from dem_taichi.kernels.coordination import count_rod_contacts, remove_rattlers
+
+        chain, n_rods = self.geometry.n_spheres, self.n_rods
+        first = 1
+        while True:  # a round per layer of rattlers (a few)
+            self._launch(count_rod_contacts, first=first, n_rods=n_rods, chain=chain)
+            self._launch(remove_rattlers, n_rods=n_rods)
+            first = 0
+            removed, alive, counts = (int(c) for c in self.a["coordination"].to_numpy())
+            if removed == 0:
+                return counts / alive if alive else 0.0
 
     def _snapshot_positions(self) -> np.ndarray:
         """Body centroids for the snapshot: wrapped, except that the discs of a bonded rod are

@@ -158,6 +158,11 @@ M_INTERACTING = 13  # number of interacting pairs (contact or non-zero long-rang
 M_U_BOND = 14  # Σ bond elastic energy (bonded rods)
 M_BROKEN = 15  # number of broken bonds (bonded rods)
 N_MEASURES = 16
+# the mechanical coordination on the device (kernels.coordination), one pruning round
+Z_REMOVED = 0  # rods removed as rattlers in the round
+Z_ALIVE = 1  # rods left (with at least two contacts with other rods left)
+Z_COUNTS = 2  # the sum of their contact counts (2 × the contacts between them)
+N_COORDINATION = 3
 #: rods, discs or bonds summed by one thread of kernels.measures.measure_sums_blocked
 MEASURE_BLOCK = 64
 

@@ -15,7 +15,7 @@ from dem_taichi.engine.device_arrays import (
 from dem_taichi.engine.state import STATE_KEYS
 
 #: Compile-time and scalar kernel parameters the engine passes by name.
-SCALARS = {"ns", "full", "phys", "n_steps", "count_step", "advance"}
+SCALARS = {"ns", "full", "phys", "n_steps", "count_step", "advance", "first", "n_rods", "chain"}
 
 
 def test_names_and_state_keys_are_unique():
@@ -53,15 +53,16 @@ def test_shapes_follow_the_sizes():
 def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
     pytest.importorskip("taichi")
     from dem_taichi.kernels import bonds, common, measures, neighbours, pairs, parallel, step
+    from dem_taichi.kernels import coordination as coord
     from dem_taichi.kernels import parallel_lists as lists
 
     kernels = [
         obj
-        for module in (bonds, common, measures, neighbours, pairs, parallel, lists, step)
+        for module in (bonds, common, coord, measures, neighbours, pairs, parallel, lists, step)
         for _, obj in inspect.getmembers(module, inspect.isfunction)
         if obj.__module__ == module.__name__ and hasattr(obj, "_primal")
     ]
-    assert len(kernels) == 11
+    assert len(kernels) == 13
     declared = {a.name for a in DEVICE_ARRAYS}
     for kernel in kernels:
         unknown = set(kernel_parameters(kernel)) - declared - SCALARS
@@ -70,13 +71,14 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
 
 def test_every_kernel_array_parameter_has_the_dimension_of_the_table():
     pytest.importorskip("taichi")
-    from dem_taichi.kernels import common, measures, parallel, parallel_lists, step
+    from dem_taichi.kernels import common, coordination, measures, parallel, parallel_lists, step
 
     shapes = {a.name: a.shape for a in DEVICE_ARRAYS}
     kernels = [step.run_steps_serial, parallel.rebuild_if_needed, parallel.kick_drift_parallel,
                parallel.forces_parallel, parallel.forces_gather, step.prime_forces,
                measures.measure_sums, common.place_all_discs, parallel_lists.rebuild_parallel,
-               parallel_lists.prime_forces_parallel, measures.measure_sums_blocked]  # fmt: skip
+               parallel_lists.prime_forces_parallel, measures.measure_sums_blocked,
+               coordination.count_rod_contacts, coordination.remove_rattlers]  # fmt: skip
     checked = 0
     for kernel in kernels:
         for name, parameter in inspect.signature(kernel).parameters.items():
