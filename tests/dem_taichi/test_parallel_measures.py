@@ -130,3 +130,26 @@ def test_the_gpu_measures_are_the_serial_cpu_ones(scene, execution, tmp_path):
     for key in COUNTS:
         assert on_gpu[key] == on_cpu[key], key
     assert on_gpu["mean_stress"] == pytest.approx(on_cpu["mean_stress"], rel=1e-9)
+
+
+@pytest.mark.parametrize("rows", [1, 63, 64, 4097, 300_000])
+def test_the_block_rows_are_added_in_levels_to_the_whole_sum(rows):
+    """``add_rows_in_levels`` (three levels of 64, then the rest on one thread): every row
+    counted once, whatever the number of rows (past 64³ = 262,144 too); integers exactly."""
+    import taichi as ti
+
+    from dem_taichi.engine.runtime import ensure_runtime
+    from dem_taichi.kernels.measures import add_rows_in_levels
+
+    ensure_runtime("cpu", "f64")
+
+    @ti.kernel
+    def add(block_sums: ti.types.ndarray(ndim=2), measures: ti.types.ndarray(ndim=1)):
+        add_rows_in_levels(block_sums, measures)
+
+    values = np.random.default_rng(rows).integers(-1000, 1000, size=(rows, 3)).astype(float)
+    block_sums = ti.ndarray(ti.f64, shape=values.shape)
+    block_sums.from_numpy(values)
+    measures = ti.ndarray(ti.f64, shape=(3,))
+    add(block_sums, measures)
+    np.testing.assert_array_equal(measures.to_numpy(), values.sum(axis=0))
