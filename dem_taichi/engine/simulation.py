@@ -525,8 +525,11 @@ class Simulation:
         """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up);
         ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
         from dem_taichi.kernels import parallel as K
-        from dem_taichi.kernels.parallel_step import step_parallel
+        from dem_taichi.kernels.parallel_lists import rebuild_parallel
         from dem_taichi.kernels.step import run_steps_serial
+
+        rebuild = rebuild_parallel if self.list_build == "parallel" else K.rebuild_if_needed
+        build = {"advance": True} if self.list_build == "parallel" else {}
 
         done = 0
         while done < n_steps:
@@ -542,12 +545,9 @@ class Simulation:
                 self._launch(run_steps_fire, ns=ns, phys=self.physics, n_steps=todo)
             elif self.execution == "serial":
                 self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
-            elif self.list_build == "parallel":  # one launch per step
-                for _ in range(todo):
-                    self._launch(step_parallel, ns=ns, full=self.full_list, phys=self.physics)
             else:
                 for _ in range(todo):
-                    self._launch(K.rebuild_if_needed, ns=ns, full=self.full_list, phys=self.physics)
+                    self._launch(rebuild, ns=ns, full=self.full_list, phys=self.physics, **build)
                     self._launch(K.kick_drift_parallel, ns=ns)
                     if self.full_list:
                         self._launch(K.forces_gather, ns=ns, phys=self.physics)

@@ -7,7 +7,7 @@ The serial fused kernel and the shared per-body step are in :mod:`.step`.
 import taichi as ti
 
 from dem_taichi.kernels.bonds import add_bond_forces, gather_bond_forces
-from dem_taichi.kernels.common import T, nd1, nd2, nd3
+from dem_taichi.kernels.common import nd1, nd2, nd3
 from dem_taichi.kernels.layout import C_DISP, C_TIME, C_VMAX, F_FORCE_REBUILD, F_STEPS, F_STOP, P_DT
 from dem_taichi.kernels.neighbours import needs_rebuild, rebuild_lists
 from dem_taichi.kernels.pairs import disc_forces
@@ -104,19 +104,6 @@ def kick_drift_parallel(
     flags: nd1,
 ):
     """Parallel path, part 2: kick and drift of every rod (parallel over rods)."""
-    kick_drift_all(
-        ns, pos, angle, vel, omega, force, torque, ref_pos, ref_angle, offsets, disc_x,
-        disc_off, cell, params, flags,
-    )  # fmt: skip
-
-
-@ti.func
-def kick_drift_all(
-    ns: T, pos: T, angle: T, vel: T, omega: T, force: T, torque: T, ref_pos: T, ref_angle: T,
-    offsets: T, disc_x: T, disc_off: T, cell: T, params: T, flags: T,
-):  # fmt: skip
-    """The body of :func:`kick_drift_parallel` (a top-level loop where the caller is a
-    kernel's top level)."""
     for r in range(pos.shape[0]):
         if flags[F_STOP] == 0:
             disp, speed = kick_drift_rod(
@@ -167,20 +154,6 @@ def forces_parallel(
     count_step: ti.i32,
 ):
     """Parallel path, part 3: pair forces (parallel over discs, atomic scatter to rods)."""
-    scatter_forces(
-        ns, phys, pos, angle, vel, omega, force, torque, disc_x, disc_off, offsets, nbr, nbr_xi,
-        nbr_psi, nbr_count, charge, pair_table, bond_intact, cell, params, flags, count_step,
-    )  # fmt: skip
-
-
-@ti.func
-def scatter_forces(
-    ns: T, phys: T, pos: T, angle: T, vel: T, omega: T, force: T, torque: T, disc_x: T,
-    disc_off: T, offsets: T, nbr: T, nbr_xi: T, nbr_psi: T, nbr_count: T, charge: T, pair_table:
-    T, bond_intact: T, cell: T, params: T, flags: T, count_step: T,
-):  # fmt: skip
-    """The body of :func:`forces_parallel` (top-level loops where the caller is a kernel's
-    top level)."""
     for i in range(disc_x.shape[0]):
         if flags[F_STOP] == 0:
             disc_forces(
@@ -249,20 +222,6 @@ def forces_gather(
     Every pair is evaluated twice (once from each side; the two tangential springs evolve as
     exact mirror images), no atomics: bitwise reproducible whatever the thread schedule.
     """
-    gather_forces(
-        ns, phys, pos, angle, vel, omega, force, torque, disc_x, disc_off, offsets, nbr, nbr_xi,
-        nbr_psi, nbr_count, charge, pair_table, bond_intact, cell, params, flags,
-    )  # fmt: skip
-
-
-@ti.func
-def gather_forces(
-    ns: T, phys: T, pos: T, angle: T, vel: T, omega: T, force: T, torque: T, disc_x: T,
-    disc_off: T, offsets: T, nbr: T, nbr_xi: T, nbr_psi: T, nbr_count: T, charge: T, pair_table:
-    T, bond_intact: T, cell: T, params: T, flags: T,
-):  # fmt: skip
-    """The body of :func:`forces_gather` (top-level loops where the caller is a kernel's
-    top level)."""
     for r in range(force.shape[0]):
         if flags[F_STOP] == 0:
             force[r, 0] = 0.0

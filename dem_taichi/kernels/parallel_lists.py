@@ -27,7 +27,7 @@ a CPU's threads: the reason the CPU keeps the serial build, :mod:`dem_taichi.eng
 import taichi as ti
 
 from dem_taichi.kernels.bonds import add_bond_forces, gather_bond_forces
-from dem_taichi.kernels.common import T, nd1, nd2, nd3
+from dem_taichi.kernels.common import nd1, nd2, nd3
 from dem_taichi.kernels.layout import (
     C_DISP,
     C_LX,
@@ -55,7 +55,7 @@ from dem_taichi.kernels.neighbours import (
 from dem_taichi.kernels.pairs import disc_forces
 from dem_taichi.kernels.step import advance_cell
 
-__all__ = ["rebuild_parallel", "build_step", "prime_forces_parallel"]
+__all__ = ["rebuild_parallel", "prime_forces_parallel"]
 
 
 @ti.kernel
@@ -92,23 +92,6 @@ def rebuild_parallel(
     advance the cell. With ``advance`` the same outcome as
     :func:`dem_taichi.kernels.parallel.rebuild_if_needed`; without, the build of
     :func:`~dem_taichi.kernels.step.prime_forces` (see :func:`prime_forces_parallel`)."""
-    build_step(
-        ns, full, phys, advance, pos, angle, ref_pos, ref_angle, offsets, disc_x, disc_off, nbr,
-        nbr_xi, nbr_psi, nbr_count, old_nbr, old_xi, old_psi, old_count, cell_count, cell_start,
-        cell_items, disc_cell, bond_intact, cell, params, flags,
-    )  # fmt: skip
-
-
-@ti.func
-def build_step(
-    ns: T, full: T, phys: T, advance: T, pos: T, angle: T, ref_pos: T, ref_angle: T, offsets: T,
-    disc_x: T, disc_off: T, nbr: T, nbr_xi: T, nbr_psi: T, nbr_count: T, old_nbr: T, old_xi: T,
-    old_psi: T, old_count: T, cell_count: T, cell_start: T, cell_items: T, disc_cell: T,
-    bond_intact: T, cell: T, params: T, flags: T,
-):  # fmt: skip
-    """The body of :func:`rebuild_parallel` (its loops stay top-level loops, each over all
-    threads, where the caller is a kernel's top level: :mod:`dem_taichi.kernels.parallel_step`
-    runs it in the same launch as the step)."""
     n_rods = pos.shape[0]
     n_discs = disc_x.shape[0]
     ti.loop_config(serialize=True)

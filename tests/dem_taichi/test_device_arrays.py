@@ -55,16 +55,14 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
     from dem_taichi.kernels import bonds, common, measures, neighbours, pairs, parallel, step
     from dem_taichi.kernels import coordination as coord
     from dem_taichi.kernels import parallel_lists as lists
-    from dem_taichi.kernels import parallel_step as fused
 
-    modules = (bonds, common, coord, measures, neighbours, pairs, parallel, lists, fused, step)
     kernels = [
         obj
-        for module in modules
+        for module in (bonds, common, coord, measures, neighbours, pairs, parallel, lists, step)
         for _, obj in inspect.getmembers(module, inspect.isfunction)
         if obj.__module__ == module.__name__ and hasattr(obj, "_primal")
     ]
-    assert len(kernels) == 14
+    assert len(kernels) == 13
     declared = {a.name for a in DEVICE_ARRAYS}
     for kernel in kernels:
         unknown = set(kernel_parameters(kernel)) - declared - SCALARS
@@ -74,15 +72,13 @@ def test_every_kernel_parameter_is_a_declared_array_or_a_scalar():
 def test_every_kernel_array_parameter_has_the_dimension_of_the_table():
     pytest.importorskip("taichi")
     from dem_taichi.kernels import common, coordination, measures, parallel, parallel_lists, step
-    from dem_taichi.kernels.parallel_step import step_parallel
 
     shapes = {a.name: a.shape for a in DEVICE_ARRAYS}
     kernels = [step.run_steps_serial, parallel.rebuild_if_needed, parallel.kick_drift_parallel,
                parallel.forces_parallel, parallel.forces_gather, step.prime_forces,
                measures.measure_sums, common.place_all_discs, parallel_lists.rebuild_parallel,
                parallel_lists.prime_forces_parallel, measures.measure_sums_blocked,
-               coordination.count_rod_contacts, coordination.remove_rattlers,
-               step_parallel]  # fmt: skip
+               coordination.count_rod_contacts, coordination.remove_rattlers]  # fmt: skip
     checked = 0
     for kernel in kernels:
         for name, parameter in inspect.signature(kernel).parameters.items():
