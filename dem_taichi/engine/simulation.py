@@ -29,23 +29,8 @@ Public API
 
 Execution
 ---------
-``execution="serial"`` runs ``steps_per_call`` fused steps in one kernel call, on one thread
-(launch overhead paid once per call: the fastest at the study's size on a CPU, measured in
-benchmarks/bench_dem.py); it is bitwise deterministic. ``"parallel"`` launches three kernels per
-step, parallel over rods and discs with atomic force scatter (for GPUs / very large N; not
-bitwise reproducible). ``"gather"``: the same three kernels with a full neighbour list and a
-per-rod gather of the pair forces (each pair evaluated twice, no atomics): deterministic in
-parallel, for GPUs. ``"auto"``: serial on CPU, parallel on GPU. ``deterministic=True`` picks the
-serial path on CPU and the gather path on GPU.
-
-``list_build`` (parallel and gather paths): ``"serial"`` builds the neighbour list on one thread
-(:func:`dem_taichi.kernels.neighbours.rebuild_lists`), ``"parallel"`` with parallel loops
-(:mod:`dem_taichi.kernels.parallel_lists`: the same list, entry for entry, so the same state bit
-for bit on the deterministic gather path); ``None`` (default): parallel on a GPU, serial on a
-CPU, whose threads pay a fixed cost per parallel loop (about 80 µs,
-benchmarks/results/launch_bench.csv) that the dozen loops of the parallel build would add to
-every step; on an H200 the one-thread build took 1 s at 24,320 rods, the parallel one < 0.1 ms
-(benchmarks/results/gpu_bench.md). The serial path always builds serially.
+``execution`` ("serial" | "parallel" | "gather" | "auto") and ``list_build`` choose the kernels
+that advance the state: :mod:`dem_taichi.engine.launcher` says which and why.
 
 Cell control
 ------------
@@ -82,12 +67,18 @@ from dem_taichi.engine.device_allocation import (
     initial_capacity,
     upload_gas,
 )
-from dem_taichi.engine.device_arrays import kernel_parameters
 from dem_taichi.engine.failures import (
     BlowUpError,
     CapacityError,
     blowup_error,
     runaway_kinetic_energy,
+)
+from dem_taichi.engine.launcher import (
+    advance,
+    fire_constants,
+    fire_status_of,
+    launch,
+    prime_forces_now,
 )
 from dem_taichi.engine.measures import BondedMeasures, Measures
 from dem_taichi.engine.parameters import EngineParameters, Physics, resolve_scene
@@ -422,32 +413,16 @@ class Simulation:
         return self.views.snapshot()
 
     def _launch(self, kernel, **scalars) -> None:
-        """Call ``kernel`` with its compile-time and scalar arguments (``scalars``, by name) and
-        every device array its other parameters name
-        (:data:`dem_taichi.engine.device_arrays.DEVICE_ARRAYS`)."""
-        a = self.a
-        kernel(*[scalars[n] if n in scalars else a[n] for n in kernel_parameters(kernel)])
+        """Call ``kernel`` with its scalars and the device arrays its parameters name
+        (:func:`dem_taichi.engine.launcher.launch`)."""
+        launch(self.a, kernel, **scalars)
 
     def recompute_forces(self) -> None:
         """Recompute forces/torques from the current positions, velocities and springs (ξ kept)."""
         self._prime()
 
     def _prime(self) -> None:
-        from dem_taichi.kernels.common import place_all_discs
-        from dem_taichi.kernels.parallel_lists import prime_forces_parallel, rebuild_parallel
-        from dem_taichi.kernels.step import prime_forces
-
-        ns, full, phys = self.body.n_spheres, self.full_list, self.physics
-        for _ in range(8):
-            if self.execution != "serial" and self.list_build == "parallel":
-                self._launch(place_all_discs, ns=ns)
-                self._launch(rebuild_parallel, ns=ns, full=full, phys=phys, advance=False)
-                self._launch(prime_forces_parallel, ns=ns, full=full, phys=phys)
-            else:
-                self._launch(prime_forces, ns=ns, full=full, phys=phys)
-            if not self._handle_flags(0):
-                return
-        raise CapacityError("could not build the neighbour list")  # pragma: no cover
+        prime_forces_now(self)
 
     # ------------------------------------------------------------------------------------------
     # flags, capacity growth, blow-up
@@ -493,76 +468,19 @@ class Simulation:
         self.parameters = self.parameters.with_changes(rate_x=rate_x, rate_y=rate_y)
 
     def _start_fire(self) -> None:
-        """Set the FIRE array for a new minimisation (:mod:`dem_taichi.kernels.fire`): the
-        scene's FIRE parameters, Δt_max and Δt_min as multiples of the current Δt, α = α_start,
-        the counters 0."""
-        p = self.scene.integration.fire
-        dt = self.time_step
-        fire = np.zeros(L.N_FIRE)
-        fire[L.FIRE_DT_MAX] = p["dt_max"] * dt
-        fire[L.FIRE_DT_MIN] = p["dt_min"] * dt
-        fire[L.FIRE_N_DELAY] = p["n_delay"]
-        fire[L.FIRE_F_INC] = p["f_inc"]
-        fire[L.FIRE_F_DEC] = p["f_dec"]
-        fire[L.FIRE_ALPHA_START] = p["alpha_start"]
-        fire[L.FIRE_F_ALPHA] = p["f_alpha"]
-        fire[L.FIRE_ALPHA] = p["alpha_start"]
-        fire[L.FIRE_DT] = dt
-        fire[L.FIRE_DT0] = dt
+        """Set the FIRE array for a new minimisation (:func:`dem_taichi.engine.launcher.
+        fire_constants`)."""
+        fire = fire_constants(self.scene.integration.fire, self.time_step)
         self.a["fire"].from_numpy(fire.astype(self._real))
 
     def fire_status(self) -> dict[str, float]:
         """The FIRE minimiser's scalars after the last minimising call ("fire" scenes): the
         running Δt it reached, α, the steps, the velocity resets (P ≤ 0) and N+ / N−."""
-        f = self.a["fire"].to_numpy().astype(float)
-        return {
-            "dt": f[L.FIRE_DT], "alpha": f[L.FIRE_ALPHA], "steps": f[L.FIRE_STEPS],
-            "resets": f[L.FIRE_RESETS], "n_positive": f[L.FIRE_N_POS],
-            "n_negative": f[L.FIRE_N_NEG],
-        }  # fmt: skip
+        return fire_status_of(self.a["fire"].to_numpy())
 
     def _advance(self, n_steps: int, fire: bool = False) -> None:
-        """Advance exactly ``n_steps`` (growing capacities on overflow, raising on blow-up);
-        ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
-        from dem_taichi.kernels import parallel as K
-        from dem_taichi.kernels.parallel_lists import rebuild_parallel
-        from dem_taichi.kernels.step import run_steps_serial
-
-        rebuild = rebuild_parallel if self.list_build == "parallel" else K.rebuild_if_needed
-        build = {"advance": True} if self.list_build == "parallel" else {}
-
-        done = 0
-        while done < n_steps:
-            flags = self.a["flags"].to_numpy()
-            flags[L.F_STEPS] = 0
-            self.a["flags"].from_numpy(flags)
-            todo = n_steps - done
-            t0 = _time.perf_counter()
-            ns = self.body.n_spheres
-            if fire:
-                from dem_taichi.kernels.fire import run_steps_fire
-
-                self._launch(run_steps_fire, ns=ns, phys=self.physics, n_steps=todo)
-            elif self.execution == "serial":
-                self._launch(run_steps_serial, ns=ns, phys=self.physics, n_steps=todo)
-            else:
-                for _ in range(todo):
-                    self._launch(rebuild, ns=ns, full=self.full_list, phys=self.physics, **build)
-                    self._launch(K.kick_drift_parallel, ns=ns)
-                    if self.full_list:
-                        self._launch(K.forces_gather, ns=ns, phys=self.physics)
-                    else:
-                        self._launch(K.forces_parallel, ns=ns, phys=self.physics, count_step=1)
-            steps_done = int(self.a["flags"].to_numpy()[L.F_STEPS])
-            self.timings["kernel"] += _time.perf_counter() - t0
-            grown = self._handle_flags(done)
-            done += steps_done
-            self.step += steps_done
-            if grown:
-                self.n_rebuild_calls += 1
-            elif steps_done < todo:  # pragma: no cover - a stop without a recognised flag
-                raise RuntimeError(f"kernel stopped after {steps_done} of {todo} steps")
-        self._check_kinetic_energy()
+        """Advance exactly ``n_steps`` (:func:`dem_taichi.engine.launcher.advance`)."""
+        advance(self, n_steps, fire)
 
     def run(
         self,
