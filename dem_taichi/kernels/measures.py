@@ -1,12 +1,14 @@
 """The measure kernels: sums of stress, energies, counts and forces, and the force and
 ``layout.PAIR_*`` bits of every list entry for the host.
 
-``measure_sums`` (the serial path) sums on one thread in a fixed order. ``measure_sums_blocked``
-(the parallel and gather paths) gives each thread a block of ``MEASURE_BLOCK`` rods, discs or
-bonds, summed in order into its row of ``block_sums``, then adds the rows in order on one
-thread: deterministic too, and the same sums to round-off (another order of additions), without
-the one-thread pass over every pair that a GPU runs far slower than a CPU core
-(benchmarks/results/gpu_bench.md). Both use the same per-rod, per-pair and per-bond functions.
+``measure_sums`` (the serial path) sums on one thread in a fixed order, into the one row its
+``block_sums`` has. ``measure_sums_blocked`` (the parallel and gather paths) gives each thread a
+block of ``MEASURE_BLOCK`` rods, discs or bonds, summed in order into its row of
+``block_sums``, then adds the rows in a fixed order (:func:`add_rows_in_levels`): deterministic
+too, and the same sums to round-off (another order of additions), without the one-thread pass
+over every pair that a GPU runs far slower than a CPU core (benchmarks/results/gpu_bench.md).
+Both add with the same per-rod, per-entry and per-bond functions (:func:`add_rod`,
+:func:`add_disc_entries`, :func:`add_bond`).
 """
 
 import taichi as ti
@@ -76,6 +78,83 @@ def pair_bits(phys: T, active, delta, fc, ft, la, params: T):
     return bits
 
 
+@ti.func
+def add_rod(r, vel: T, omega: T, force: T, torque: T, params: T, sums: T, row):
+    """Rod ``r``'s kinetic energies and resultant force into ``sums[row]``."""
+    ke, ke_rot, f_rod = rod_sums(r, vel, omega, force, torque, params)
+    sums[row, M_KE_TRANS] += ke
+    sums[row, M_KE_ROT] += ke_rot
+    sums[row, M_SUM_ROD_FORCE] += f_rod
+
+
+@ti.func
+def add_disc_entries(
+    ns: T, full: T, phys: T, i, vel: T, omega: T, disc_x: T, disc_off: T, offsets: T, nbr: T,
+    nbr_xi: T, nbr_psi: T, nbr_count: T, charge: T, pair_table: T, bond_intact: T, cell: T,
+    params: T, rod_contacts: T, pair_out: T, pair_flags: T, sums: T, row,
+):  # fmt: skip
+    """Disc ``i``'s list entries in order: stress, energies and counts into ``sums[row]``, the
+    contacts into ``rod_contacts`` (both rods), each entry's forces and bits into ``pair_out``
+    and ``pair_flags`` (a full list: the entries with j < i, listed twice, flagged 0 and
+    skipped)."""
+    rod_i = i // ns
+    for k in range(nbr_count[i]):
+        listed = True
+        if ti.static(full):
+            if nbr[i, k] // IMAGE_CODES < i:
+                pair_flags[i, k] = 0
+                listed = False
+        if listed:
+            fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = pair_interaction(
+                ns, phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi,
+                nbr_psi, charge, pair_table, bond_intact, cell, params,
+            )  # fmt: skip
+            bits = pair_bits(phys, active, delta, fc, ft, la, params)
+            if active == 1:
+                sums[row, M_SXX] += fx * bx
+                sums[row, M_SXY] += fx * by
+                sums[row, M_SYX] += fy * bx
+                sums[row, M_SYY] += fy * by
+                sums[row, M_U_CONTACT] += uc
+                sums[row, M_U_LONG] += ul
+                if bits & PAIR_CONTACT:
+                    sums[row, M_CONTACTS] += 1.0
+                    ti.atomic_add(rod_contacts[rod_i], 1)
+                    ti.atomic_add(rod_contacts[j // ns], 1)
+                if bits & PAIR_SLIDING:
+                    sums[row, M_SLIDING] += 1.0
+                if bits & PAIR_LONG_RANGE:
+                    sums[row, M_LONG_PAIRS] += 1.0
+                if bits != 0:
+                    sums[row, M_INTERACTING] += 1.0
+                    sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+            pair_out[i, k, 0] = fx
+            pair_out[i, k, 1] = fy
+            pair_out[i, k, 2] = fc
+            pair_out[i, k, 3] = ft
+            pair_flags[i, k] = bits
+
+
+@ti.func
+def add_bond(chain: T, g, pos: T, angle: T, vel: T, omega: T, bond_intact: T, cell: T,
+             params: T, sums: T, row):  # fmt: skip
+    """The bond of body ``g`` to ``g + 1`` (none for a rod's last disc): its stress, energy and
+    force into ``sums[row]``, or a broken bond counted."""
+    if g % chain != chain - 1:
+        if bond_intact[g] == 1:
+            fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
+                g, pos, angle, vel, omega, cell, params
+            )
+            sums[row, M_SXX] += fx * dx
+            sums[row, M_SXY] += fx * dy
+            sums[row, M_SYX] += fy * dx
+            sums[row, M_SYY] += fy * dy
+            sums[row, M_U_BOND] += energy
+            sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
+        else:
+            sums[row, M_BROKEN] += 1.0
+
+
 @ti.kernel
 def measure_sums(
     ns: ti.template(),
@@ -103,8 +182,10 @@ def measure_sums(
     rod_contacts: nd1,
     pair_out: nd3,
     pair_flags: nd2,
+    block_sums: nd2,
 ):
-    """Serial sums for the measures (deterministic order); also per-entry pair data.
+    """Serial sums for the measures (deterministic order), in the one row of ``block_sums``;
+    also per-entry pair data.
 
     pair_out (M,K,4): F_x, F_y, f_contact_normal, f_tangential of each list entry;
     pair_flags (M,K): bits PAIR_CONTACT, PAIR_LONG_RANGE, PAIR_SLIDING, PAIR_INTERACTING (layout).
@@ -116,83 +197,23 @@ def measure_sums(
     ti.loop_config(serialize=True)
     for _ in range(1):
         for q in range(measures.shape[0]):
-            measures[q] = 0.0
+            block_sums[0, q] = 0.0
         for r in range(n_rods):
             rod_contacts[r] = 0
         for r in range(n_rods):
-            ke, ke_rot, f_rod = rod_sums(r, vel, omega, force, torque, params)
-            measures[M_KE_TRANS] += ke
-            measures[M_KE_ROT] += ke_rot
-            measures[M_SUM_ROD_FORCE] += f_rod
+            add_rod(r, vel, omega, force, torque, params, block_sums, 0)
         for i in range(n_discs):
-            rod_i = i // ns
-            for k in range(nbr_count[i]):
-                if ti.static(full):
-                    if nbr[i, k] // IMAGE_CODES < i:
-                        pair_flags[i, k] = 0
-                        continue
-                fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
-                    pair_interaction(
-                        ns,
-                        phys,
-                        False,
-                        i,
-                        k,
-                        vel,
-                        omega,
-                        disc_x,
-                        disc_off,
-                        offsets,
-                        nbr,
-                        nbr_xi,
-                        nbr_psi,
-                        charge,
-                        pair_table,
-                        bond_intact,
-                        cell,
-                        params,
-                    )
-                )
-                bits = pair_bits(phys, active, delta, fc, ft, la, params)
-                if active == 1:
-                    measures[M_SXX] += fx * bx
-                    measures[M_SXY] += fx * by
-                    measures[M_SYX] += fy * bx
-                    measures[M_SYY] += fy * by
-                    measures[M_U_CONTACT] += uc
-                    measures[M_U_LONG] += ul
-                    if bits & PAIR_CONTACT:
-                        measures[M_CONTACTS] += 1.0
-                        rod_contacts[rod_i] += 1
-                        rod_contacts[j // ns] += 1
-                    if bits & PAIR_SLIDING:
-                        measures[M_SLIDING] += 1.0
-                    if bits & PAIR_LONG_RANGE:
-                        measures[M_LONG_PAIRS] += 1.0
-                    if bits != 0:
-                        measures[M_INTERACTING] += 1.0
-                        measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
-                pair_out[i, k, 0] = fx
-                pair_out[i, k, 1] = fy
-                pair_out[i, k, 2] = fc
-                pair_out[i, k, 3] = ft
-                pair_flags[i, k] = bits
+            add_disc_entries(
+                ns, full, phys, i, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi, nbr_psi,
+                nbr_count, charge, pair_table, bond_intact, cell, params, rod_contacts, pair_out,
+                pair_flags, block_sums, 0,
+            )  # fmt: skip
         if ti.static(phys.bonded):
-            chain = ti.static(phys.chain)
             for g in range(n_rods):
-                if g % chain != chain - 1:
-                    if bond_intact[g] == 1:
-                        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
-                            g, pos, angle, vel, omega, cell, params
-                        )
-                        measures[M_SXX] += fx * dx
-                        measures[M_SXY] += fx * dy
-                        measures[M_SYX] += fy * dx
-                        measures[M_SYY] += fy * dy
-                        measures[M_U_BOND] += energy
-                        measures[M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
-                    else:
-                        measures[M_BROKEN] += 1.0
+                add_bond(phys.chain, g, pos, angle, vel, omega, bond_intact, cell, params,
+                         block_sums, 0)  # fmt: skip
+        for q in range(measures.shape[0]):
+            measures[q] = block_sums[0, q]
 
 
 @ti.kernel
@@ -226,8 +247,8 @@ def measure_sums_blocked(
 ):
     """The sums and per-entry data of :func:`measure_sums`, in parallel: each thread sums a block
     of ``MEASURE_BLOCK`` rods, discs or bonds in order into its row of ``block_sums`` (rows: the
-    rod blocks, then the disc blocks, then the bond blocks), then one thread adds the rows in
-    order. Deterministic; equal to the serial sums to round-off."""
+    rod blocks, then the disc blocks, then the bond blocks), then the rows are added in a fixed
+    order (:func:`add_rows_in_levels`). Deterministic; equal to the serial sums to round-off."""
     n_rods = vel.shape[0]
     n_discs = n_rods * ns
     rod_blocks = (n_rods + MEASURE_BLOCK - 1) // MEASURE_BLOCK
@@ -238,69 +259,19 @@ def measure_sums_blocked(
         rod_contacts[r] = 0
     for b in range(rod_blocks):
         for r in range(b * MEASURE_BLOCK, ti.min((b + 1) * MEASURE_BLOCK, n_rods)):
-            ke, ke_rot, f_rod = rod_sums(r, vel, omega, force, torque, params)
-            block_sums[b, M_KE_TRANS] += ke
-            block_sums[b, M_KE_ROT] += ke_rot
-            block_sums[b, M_SUM_ROD_FORCE] += f_rod
+            add_rod(r, vel, omega, force, torque, params, block_sums, b)
     for d in range(disc_blocks):
-        row = rod_blocks + d
         for i in range(d * MEASURE_BLOCK, ti.min((d + 1) * MEASURE_BLOCK, n_discs)):
-            rod_i = i // ns
-            for k in range(nbr_count[i]):
-                listed = True
-                if ti.static(full):
-                    if nbr[i, k] // IMAGE_CODES < i:
-                        pair_flags[i, k] = 0
-                        listed = False
-                if listed:
-                    fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = (
-                        pair_interaction(
-                            ns, phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr,
-                            nbr_xi, nbr_psi, charge, pair_table, bond_intact, cell, params,
-                        )
-                    )  # fmt: skip
-                    bits = pair_bits(phys, active, delta, fc, ft, la, params)
-                    if active == 1:
-                        block_sums[row, M_SXX] += fx * bx
-                        block_sums[row, M_SXY] += fx * by
-                        block_sums[row, M_SYX] += fy * bx
-                        block_sums[row, M_SYY] += fy * by
-                        block_sums[row, M_U_CONTACT] += uc
-                        block_sums[row, M_U_LONG] += ul
-                        if bits & PAIR_CONTACT:
-                            block_sums[row, M_CONTACTS] += 1.0
-                            ti.atomic_add(rod_contacts[rod_i], 1)
-                            ti.atomic_add(rod_contacts[j // ns], 1)
-                        if bits & PAIR_SLIDING:
-                            block_sums[row, M_SLIDING] += 1.0
-                        if bits & PAIR_LONG_RANGE:
-                            block_sums[row, M_LONG_PAIRS] += 1.0
-                        if bits != 0:
-                            block_sums[row, M_INTERACTING] += 1.0
-                            block_sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
-                    pair_out[i, k, 0] = fx
-                    pair_out[i, k, 1] = fy
-                    pair_out[i, k, 2] = fc
-                    pair_out[i, k, 3] = ft
-                    pair_flags[i, k] = bits
+            add_disc_entries(
+                ns, full, phys, i, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi, nbr_psi,
+                nbr_count, charge, pair_table, bond_intact, cell, params, rod_contacts, pair_out,
+                pair_flags, block_sums, rod_blocks + d,
+            )  # fmt: skip
     if ti.static(phys.bonded):
-        chain = ti.static(phys.chain)
         for b in range(rod_blocks):
-            row = rod_blocks + disc_blocks + b
             for g in range(b * MEASURE_BLOCK, ti.min((b + 1) * MEASURE_BLOCK, n_rods)):
-                if g % chain != chain - 1:
-                    if bond_intact[g] == 1:
-                        fx, fy, tau_h, tau_g, dx, dy, energy, e_n = bond_interaction(
-                            g, pos, angle, vel, omega, cell, params
-                        )
-                        block_sums[row, M_SXX] += fx * dx
-                        block_sums[row, M_SXY] += fx * dy
-                        block_sums[row, M_SYX] += fy * dx
-                        block_sums[row, M_SYY] += fy * dy
-                        block_sums[row, M_U_BOND] += energy
-                        block_sums[row, M_SUM_PAIR_FORCE] += ti.sqrt(fx * fx + fy * fy)
-                    else:
-                        block_sums[row, M_BROKEN] += 1.0
+                add_bond(phys.chain, g, pos, angle, vel, omega, bond_intact, cell, params,
+                         block_sums, rod_blocks + disc_blocks + b)  # fmt: skip
     add_rows_in_levels(block_sums, measures)
 
 
