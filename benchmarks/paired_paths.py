@@ -63,14 +63,18 @@ VARIANT_KEYS = ("integration.dt_safety",)
 BEFORE_A = ("aggregation", "isotropic_to_A")
 
 
-def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLog, float, float]:
+def _branch(
+    checkpoint: str, toml: str, label: str, state_a
+) -> tuple[str, RunLog | None, float, float, str]:
     """Run one branch from the checkpoint of A with the variant's settings (a worker); returns
-    its label, log, seconds and the Δt it integrated with."""
+    its label, log, seconds, the Δt it integrated with and "" (or, when the branch stopped
+    with a :class:`~dem_taichi.protocol.records.ProtocolError`, e.g. a servo that did not
+    reach its target: no log and the error's message, so the other branches are kept)."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.branches import run_branch_on
     from dem_taichi.protocol.paths import ProtocolRunner
     from dem_taichi.protocol.probing import ProbeRecorder
-    from dem_taichi.protocol.records import Branch, RunLog
+    from dem_taichi.protocol.records import Branch, ProtocolError, RunLog
     from dem_taichi.scene.config import scene_from_toml
     from dem_taichi.scene.probing_sections import probing_settings
     from dem_taichi.scene.protocol_sections import protocol_settings
@@ -87,9 +91,12 @@ def _branch(checkpoint: str, toml: str, label: str, state_a) -> tuple[str, RunLo
     runner = ProtocolRunner(sim, config, probing, None, None, recorder, False, log=log)
     runner.state_A = sim.get_state()
     log.states["A"] = state_a
-    run_branch_on(runner, Branch.parse(label))
+    try:
+        run_branch_on(runner, Branch.parse(label))
+    except ProtocolError as error:
+        return label, None, time.perf_counter() - start, sim.time_step, str(error)
     del log.states["A"]
-    return label, log, time.perf_counter() - start, sim.time_step
+    return label, log, time.perf_counter() - start, sim.time_step, ""
 
 
 def _findings(result, particles) -> dict:
@@ -252,9 +259,19 @@ def main(argv: list[str] | None = None) -> int:
         merged.probes = list(log.probes)
         merge_work(merged.work, log.work)  # a copy: the stage to A's ledger
         branch_seconds = {}
-        for label, branch_log, seconds, _ in outcomes:
-            merged.merge(branch_log)
+        failed = {o[0]: o[4] for o in outcomes if o[4]}
+        for label, branch_log, seconds, _, _ in outcomes:
+            if branch_log is not None:
+                merged.merge(branch_log)
             branch_seconds[label] = seconds
+        if failed:  # a failed branch: its seconds up to the failure, no findings
+            report["variants"][name] = {
+                "settings": keys, "failed": failed, "branch_seconds": branch_seconds,
+                "branch_process_seconds": sum(branch_seconds.values()),
+            }  # fmt: skip
+            print(f"[seed {args.seed}] {name}: FAILED {failed}", flush=True)
+            args.out.write_text(json.dumps(jsonable(report), indent=1))
+            continue
         result = ProtocolResult(
             out_dir=args.out.parent, scene_name=args.scene, pattern="", n_rods=n_rods,
             arch="cpu", precision="f64", log=merged,

@@ -92,8 +92,12 @@ def _seconds(seed: dict, name: str) -> float:
     return entry["branch_process_seconds"]
 
 
-def _steps(seed: dict, variant: str) -> int:
-    steps = seed["variants"][variant]["steps"]
+def _steps(seed: dict, variant: str) -> float:
+    """A variant's steps from A; NaN where a branch failed (``paired_paths.py`` records no
+    steps then)."""
+    steps = seed["variants"][variant].get("steps")
+    if steps is None:
+        return math.nan
     return int(sum(v for k, v in steps.items() if k not in BEFORE_A))
 
 
@@ -132,9 +136,19 @@ def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
         settings = "; ".join(seeds[0]["variants"][name]["settings"]) or "(the scene's)"
         lines.append(
             f"| {name} | {settings} | {', '.join(f'{w:.0f}' for w in walls)} | "
-            f"{', '.join(f'{n:,}' for n in steps)} | {wall_ratio[0]:.2f} ± {wall_ratio[1]:.2f} | "
+            f"{', '.join(f'{n:,}' if math.isfinite(n) else 'failed' for n in steps)} | "
+            f"{wall_ratio[0]:.2f} ± {wall_ratio[1]:.2f} | "
             f"{step_ratio[0]:.2f} ± {step_ratio[1]:.2f} |"
         )
+    failures = [
+        f"- seed {s['seed']}, {name}: {label}: {error}"
+        for s in seeds
+        for name, entry in s["variants"].items()
+        for label, error in entry.get("failed", {}).items()
+    ]
+    if failures:
+        lines += ["", "Failed branches (no steps, no findings; seconds up to the failure):", "",
+                  *failures]  # fmt: skip
     for name in variants:
         if name == null:
             continue

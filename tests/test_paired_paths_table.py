@@ -132,3 +132,18 @@ def test_state_a_under_other_settings_is_shown_beside_the_base(tables):
                    "600,000 → 300,000 | 400 → 180 |")  # fmt: skip
     with pytest.raises(SystemExit, match="A of smoke_bonded beside paper_bonded"):
         tables.a_table([seed], [{**other, "scene": "smoke_bonded"}], "base")
+
+
+def test_a_failed_branch_is_listed_and_its_variant_has_no_steps(tables):
+    """A variant whose branch stopped (``paired_paths.py`` records ``failed``, its seconds, no
+    steps nor findings) shows "failed" in the steps column and its error under the table."""
+    seeds = [_seed(3, pooled=True), _seed(4, pooled=True)]
+    seeds[1]["variants"]["fast"] = {
+        "settings": [], "failed": {"k0": "[A_to_C] stress targets [7.26] not reached"},
+        "branch_seconds": {"A_to_B": 50.0, "k0": 900.0}, "branch_process_seconds": 950.0,
+    }  # fmt: skip
+    assert math.isnan(tables._steps(seeds[1], "fast"))
+    lines = tables.table(seeds, "base")
+    row = next(line for line in lines if line.startswith("| fast |"))
+    assert "1,500, failed" in row
+    assert "- seed 4, fast: k0: [A_to_C] stress targets [7.26] not reached" in lines
