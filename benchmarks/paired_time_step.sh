@@ -10,6 +10,9 @@
 # Optional: BRANCHES (default isotropic,k0), FACTOR (default 2). A seed with OUT/seedN.done is
 # skipped (rerun the script to resume after an interruption).
 set -u
+# stopping the script stops its pool's workers too (their command line names only
+# multiprocessing.spawn, so `pkill -f paired_paths` alone would leave them running)
+trap 'trap - TERM; kill 0' INT TERM
 here=$(cd "$(dirname "$0")" && pwd)
 : "${OUT:?}" "${PY:?}" "${SCENE:?}"
 branches=${BRANCHES:-isotropic,k0}
