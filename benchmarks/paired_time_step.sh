@@ -10,8 +10,8 @@
 # Optional: BRANCHES (default isotropic,k0), FACTOR (default 2). A seed with OUT/seedN.done is
 # skipped (rerun the script to resume after an interruption).
 set -u
-# stopping the script stops its pool's workers too (their command line names only
-# multiprocessing.spawn, so `pkill -f paired_paths` alone would leave them running)
+# stopping the script (kill -TERM its pid) stops its pool's workers too: their command line
+# names only multiprocessing.spawn, so `pkill -f paired_paths` alone would leave them running
 trap 'trap - TERM; kill 0' INT TERM
 here=$(cd "$(dirname "$0")" && pwd)
 : "${OUT:?}" "${PY:?}" "${SCENE:?}"
@@ -26,7 +26,8 @@ for seed in "$@"; do
   start=$(date +%s)
   PYTHONPATH="$here/.." "$PY" "$here/paired_paths.py" --scene "$SCENE" --seed "$seed" \
     --branches "$branches" --pool --workers 2 --out "$OUT/seed$seed.json" \
-    "${variant_args[@]}" > "$OUT/seed$seed.log" 2>&1
+    "${variant_args[@]}" > "$OUT/seed$seed.log" 2>&1 &
+  wait $!  # in the background, so that a signal runs the trap at once
   rc=$?
   echo "$SCENE seed $seed rc $rc wall $(( $(date +%s) - start )) s" >> "$OUT/summary.txt"
   [ $rc -eq 0 ] && touch "$OUT/seed$seed.done"
