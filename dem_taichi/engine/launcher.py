@@ -43,7 +43,7 @@ from dem_taichi.scene.geometry import RodGeometry
 __all__ = ["launch", "prime_forces_now", "advance", "fire_constants", "fire_status_of"]
 
 
-class Simulation(Protocol):
+class SimulationLike(Protocol):
     """What the launches use of a :class:`dem_taichi.engine.simulation.Simulation`."""
 
     a: dict[str, Any]
@@ -70,7 +70,7 @@ def launch(arrays: Mapping[str, Any], kernel, **scalars) -> None:
     kernel(*[scalars[n] if n in scalars else arrays[n] for n in kernel_parameters(kernel)])
 
 
-def prime_forces_now(sim: Simulation) -> None:
+def prime_forces_now(sim: SimulationLike) -> None:
     """Build the neighbour list and compute the forces of ``sim``'s current state without
     moving (capacity grown and the build repeated on overflow)."""
     from dem_taichi.kernels.common import place_all_discs
@@ -90,7 +90,7 @@ def prime_forces_now(sim: Simulation) -> None:
     raise CapacityError("could not build the neighbour list")  # pragma: no cover
 
 
-def advance(sim: Simulation, n_steps: int, fire: bool = False) -> None:
+def advance(sim: SimulationLike, n_steps: int, fire: bool = False) -> None:
     """Advance ``sim`` exactly ``n_steps`` (growing capacities on overflow, raising on
     blow-up); ``fire``: with the FIRE minimiser (fixed cell, serial execution)."""
     from dem_taichi.kernels import parallel as K
