@@ -252,18 +252,8 @@ def main(argv: list[str] | None = None) -> int:
                 ]
                 outcomes = [f.result() for f in futures]
             wall = time.perf_counter() - t0
-        merged = RunLog()
-        merged.stages = {k: v for k, v in log.stages.items()}
-        merged.states = {"A": state_a}
-        merged.path_states = list(log.path_states)
-        merged.probes = list(log.probes)
-        merge_work(merged.work, log.work)  # a copy: the stage to A's ledger
-        branch_seconds = {}
-        failed = {o[0]: o[4] for o in outcomes if o[4]}
-        for label, branch_log, seconds, _, _ in outcomes:
-            if branch_log is not None:
-                merged.merge(branch_log)
-            branch_seconds[label] = seconds
+        branch_seconds = {label: seconds for label, _, seconds, _, _ in outcomes}
+        failed = {label: error for label, _, _, _, error in outcomes if error}
         if failed:  # a failed branch: its seconds up to the failure, no findings
             report["variants"][name] = {
                 "settings": keys, "failed": failed, "branch_seconds": branch_seconds,
@@ -272,6 +262,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"[seed {args.seed}] {name}: FAILED {failed}", flush=True)
             args.out.write_text(json.dumps(jsonable(report), indent=1))
             continue
+        merged = RunLog()
+        merged.stages = {k: v for k, v in log.stages.items()}
+        merged.states = {"A": state_a}
+        merged.path_states = list(log.path_states)
+        merged.probes = list(log.probes)
+        merge_work(merged.work, log.work)  # a copy: the stage to A's ledger
+        for _, branch_log, _, _, _ in outcomes:
+            merged.merge(branch_log)
         result = ProtocolResult(
             out_dir=args.out.parent, scene_name=args.scene, pattern="", n_rods=n_rods,
             arch="cpu", precision="f64", log=merged,
