@@ -69,7 +69,10 @@ def _branch(
     """Run one branch from the checkpoint of A with the variant's settings (a worker); returns
     its label, log, seconds, the Δt it integrated with and "" (or, when the branch stopped
     with a :class:`~dem_taichi.protocol.records.ProtocolError`, e.g. a servo that did not
-    reach its target: no log and the error's message, so the other branches are kept)."""
+    reach its target, or a :class:`~dem_taichi.engine.failures.BlowUpError`, e.g. a relaxation
+    past the local stability limit: no log and the error's message, so the other branches are
+    kept)."""
+    from dem_taichi.engine.failures import BlowUpError
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.branches import run_branch_on
     from dem_taichi.protocol.paths import ProtocolRunner
@@ -93,7 +96,7 @@ def _branch(
     log.states["A"] = state_a
     try:
         run_branch_on(runner, Branch.parse(label))
-    except ProtocolError as error:
+    except (ProtocolError, BlowUpError) as error:
         return label, None, time.perf_counter() - start, sim.time_step, str(error)
     del log.states["A"]
     return label, log, time.perf_counter() - start, sim.time_step, ""

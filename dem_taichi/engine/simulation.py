@@ -70,6 +70,7 @@ from dem_taichi.engine.device_allocation import (
 from dem_taichi.engine.failures import (
     BlowUpError,
     CapacityError,
+    PeriodTwo,
     blowup_error,
     runaway_kinetic_energy,
 )
@@ -398,6 +399,11 @@ class Simulation:
     def stress(self) -> np.ndarray:
         """Stress tensor (2, 2), compression positive, from the current forces."""
         return self.views.stress()
+
+    def period_two(self) -> PeriodTwo:
+        """The bodies oscillating with a period of two steps (:meth:`SimulationViews.period_two`):
+        a time step beyond their local stability limit, which a relaxation cannot remove."""
+        return self.views.period_two()
 
     def total_energy(self) -> float:
         """Kinetic + contact + long-range (+ bond) energy (for conservation checks)."""

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from dem_taichi.engine.failures import PeriodTwo, period_two_bodies
 from dem_taichi.engine.measures import BondedMeasures, history_record
 from dem_taichi.engine.network import interacting_entries, mechanical_coordination, network_snapshot
 from dem_taichi.engine.parameters import EngineParameters, Physics
@@ -178,6 +179,16 @@ class SimulationViews:
     def stress(self) -> np.ndarray:
         """Stress tensor (2, 2), compression positive, from the current forces."""
         return self._stress_tensor()
+
+    def period_two(self) -> PeriodTwo:
+        """The bodies oscillating with a period of two steps now, from the forces and half-step
+        velocities (:func:`dem_taichi.engine.failures.period_two_bodies`)."""
+        a, p = self.a, self.parameters
+        n = self.n_bodies
+        return period_two_bodies(
+            a["force"].to_numpy()[:n], a["vel"].to_numpy()[:n], a["torque"].to_numpy()[:n],
+            a["omega"].to_numpy()[:n], p.mass, p.inertia, p.time_step, p.local_damping,
+        )  # fmt: skip
 
     @staticmethod
     def total_energy(m: BondedMeasures) -> float:

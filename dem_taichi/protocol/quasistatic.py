@@ -22,6 +22,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from dem_taichi.engine.failures import PERIOD_TWO_SHARE, period_two_error
 from dem_taichi.engine.measures import Measures
 from dem_taichi.engine.simulation import CellControl, Simulation
 from dem_taichi.engine.work_profile import doing
@@ -75,9 +76,13 @@ def relax(
     """Run at fixed cell until UFR < ``unbalanced_force`` and KE/N < ``kinetic_energy_per_rod``.
 
     Checks every ``check_steps`` steps, stops after ``max_steps``; ``give_up(measures, steps)``
-    may end it early (returns not relaxed). Returns (measures, relaxed, steps run). Each chunk
-    is a minimising call (``CellControl.relaxation``): the scene's ``[integration] relaxation``
-    integrates it with the damped dynamics (the default) or with FIRE.
+    may end it early (returns not relaxed). When ``max_steps`` ran out and most of the
+    unbalanced force is in bodies oscillating with a period of two steps (the time step beyond
+    their local stability limit; :func:`dem_taichi.engine.failures.period_two_bodies`), raises
+    :class:`~dem_taichi.engine.failures.BlowUpError` saying so: more steps would not relax them
+    (the damped relaxation; FIRE's kick is another). Returns (measures, relaxed, steps run).
+    Each chunk is a minimising call (``CellControl.relaxation``): the scene's
+    ``[integration] relaxation`` integrates it with the damped dynamics (the default) or with FIRE.
     """
     steps = 0
     measures = cast(Measures, {})  # returned as is only when max_steps <= 0
@@ -92,6 +97,12 @@ def relax(
             return measures, True, steps
         if give_up is not None and give_up(measures, steps):
             return measures, False, steps
+    if max_steps > 0 and sim.scene.integration.relaxation_method != "fire":
+        found = sim.period_two()  # a bounded blow-up: no number of steps relaxes it
+        if found.share >= PERIOD_TWO_SHARE:
+            raise period_two_error(
+                found, stage, sim.step, sim.time_step, sim.scene.time_step, sim.scene.integration
+            )
     return measures, False, steps
 
 

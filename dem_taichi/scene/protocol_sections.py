@@ -111,7 +111,8 @@ class ProtocolConfig(SceneSection):
       take their kinetic energy and a tight bound (1e-8 was tried) is never met; UFR decides.
     - ``relax_check_steps`` [500]: steps between relaxation checks.
     - ``relax_max_steps`` [200000]: most steps of one relaxation (then it continues, recorded
-      as not relaxed).
+      as not relaxed; or stops the run when the time step is past the local stability limit of
+      the bodies that hold the unbalanced force: :func:`dem_taichi.protocol.quasistatic.relax`).
     - ``stress_tolerance`` [1e-3]: |σ − σ_target|/σ_target allowed at relaxed states.
     - ``path_stress_tolerance`` [unset = ``stress_tolerance``]: the same, at the relaxed states
       inside a path only: the states that end a path (B, C, B', R<k>_end) keep
