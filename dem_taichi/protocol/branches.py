@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dem_taichi.engine.parameters import EngineParameters
 from dem_taichi.protocol.paths import ProtocolRunner
 from dem_taichi.protocol.records import (
     Branch,
@@ -81,16 +82,17 @@ def branch_labels(branches: Iterable[Branch]) -> str:
 
 
 def run_branch_on(runner: ProtocolRunner, branch: Branch) -> None:
-    """Run one branch from A on ``runner`` (its simulation is set to A by the path itself), at
-    the paths' Δt (``[protocol] path_time_step_factor`` × the Δt the engine integrated A with,
-    restored after the branch, also on error)."""
+    """Run one branch from A on ``runner`` (its simulation is set to A by the path itself) with
+    the paths' runtime parameters (:func:`path_changes`: ``[protocol] path_time_step_factor`` ×
+    the Δt the engine integrated A with, and no contact dashpot where ``path_contact_damping =
+    false``), restored after the branch, also on error."""
     sim, state_a = runner.sim, runner.state_A
-    prepared = sim.time_step
-    path_dt = runner.config.path_time_step(prepared)
-    if path_dt != prepared:  # the paths restore A, its runtime parameters with it: A at path_dt
-        sim.set_parameters(time_step=path_dt)
+    prepared = sim.parameters
+    changes = path_changes(runner.config, prepared)
+    if changes:  # the paths restore A, its runtime parameters with it: A with the paths'
+        sim.set_parameters(**changes)
         if state_a is not None:
-            runner.state_A = state_at_time_step(state_a, path_dt)
+            runner.state_A = state_with_changes(state_a, changes)
     try:
         if branch.kind == "isotropic":
             runner.isotropic_path()
@@ -102,18 +104,30 @@ def run_branch_on(runner: ProtocolRunner, branch: Branch) -> None:
             assert branch.eta is not None  # a radial branch has its η (Branch.__post_init__)
             runner.radial_path(branch.eta, branch.index)
     finally:
-        if path_dt != prepared:
+        if changes:
             runner.state_A = state_a
-            sim.set_parameters(time_step=prepared)
+            sim.set_parameters(**{name: getattr(prepared, name) for name in changes})
 
 
-def state_at_time_step(state: dict, time_step: float) -> dict:
-    """A copy of an engine state (:meth:`Simulation.get_state`) whose runtime parameters
-    integrate at ``time_step`` (the rest of the state shared, not copied)."""
-    from dem_taichi.engine.parameters import EngineParameters
+def path_changes(config: ProtocolConfig, prepared: EngineParameters) -> dict[str, float]:
+    """The runtime parameters the paths from A change, from those A was ``prepared`` with: Δt ×
+    ``path_time_step_factor``; γ_n = γ_t = 0 where ``path_contact_damping = false`` (the
+    explicit contact dashpot, with the local damping, lowers the stable step:
+    ``benchmarks/results/period_two.md``). Empty for a scene whose paths change nothing."""
+    changes: dict[str, float] = {}
+    path_dt = config.path_time_step(prepared.time_step)
+    if path_dt != prepared.time_step:
+        changes["time_step"] = path_dt
+    if config.path_contact_damping is False:
+        changes.update(gamma_n=0.0, gamma_t=0.0)
+    return changes
 
+
+def state_with_changes(state: dict, changes: dict[str, float]) -> dict:
+    """A copy of an engine state (:meth:`Simulation.get_state`) whose runtime parameters have
+    ``changes`` (:meth:`EngineParameters.tuned`; the rest of the state shared, not copied)."""
     params = np.asarray(state["params"])
-    tuned = EngineParameters.from_vector(params).tuned(time_step=time_step)
+    tuned = EngineParameters.from_vector(params).tuned(**changes)
     return {**state, "params": tuned.vector(params.dtype)}
 
 

@@ -401,6 +401,19 @@ class ProtocolConfig(SceneSection):
             "optional": True,
         },
     )
+    path_contact_damping: bool | None = field(
+        default=None,
+        metadata={
+            **_doc(
+                "the paths from A (every branch and its probes) with the scene's contact dashpot "
+                "(unset or true) or without it (false: γ_n = γ_t = 0, the local damping alone); "
+                "the preparation keeps it. The explicit dashpot lowers the leapfrog's stable "
+                "step (benchmarks/results/period_two.md)",
+                "-",
+            ),
+            "optional": True,
+        },
+    )
     save_states: bool = field(
         default=True,
         metadata=_doc("write a checkpoint state_<label>.npz at every labelled state", "-"),

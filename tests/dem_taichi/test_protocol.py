@@ -840,6 +840,44 @@ def test_the_paths_at_twice_the_time_step_leave_the_preparation_bitwise(run, coa
     assert list(coarse.states) == ["A", "B", "C"]
 
 
+def test_the_paths_change_only_what_their_keys_ask():
+    """``path_changes``: nothing for a scene as shipped; Δt × the factor; γ_n = γ_t = 0 without
+    the contact dashpot (``path_contact_damping = false``), and the state of A given the same."""
+    from dem_taichi.engine.parameters import EngineParameters
+    from dem_taichi.protocol.branches import path_changes, state_with_changes
+    from dem_taichi.scene.protocol_sections import ProtocolConfig
+
+    params = EngineParameters.from_vector(
+        np.arange(1.0, len(dataclasses.fields(EngineParameters)) + 1)
+    )
+    assert path_changes(ProtocolConfig(), params) == {}
+    assert path_changes(ProtocolConfig(path_contact_damping=True), params) == {}
+    assert path_changes(ProtocolConfig(path_time_step_factor=2.0), params) == {
+        "time_step": 2.0 * params.time_step
+    }
+    off = path_changes(ProtocolConfig(path_contact_damping=False), params)
+    assert off == {"gamma_n": 0.0, "gamma_t": 0.0}
+    state = {"params": params.vector(np.float64), "pos": np.zeros(3)}
+    changed = EngineParameters.from_vector(state_with_changes(state, off)["params"])
+    assert changed == params.tuned(gamma_n=0.0, gamma_t=0.0)
+    assert changed.gamma_n == 0.0 and changed.k_n == params.k_n
+
+
+def test_the_paths_without_the_contact_dashpot_leave_the_preparation_bitwise(run, tmp_path):
+    """``path_contact_damping = false`` on the smoke protocol's A→B: A is bit for bit the run's
+    (the preparation keeps the dashpot), B another trajectory within the servo's tolerance."""
+    from dem_taichi.protocol.runner import run_protocol
+
+    scene = smoke_protocol_scene(
+        path_contact_damping=False, run_k0=False, run_unloading=False, radial_stress_ratios=""
+    )
+    plain = run_protocol(scene, tmp_path / "no_dashpot")
+    assert plain.states["A"].measures == run.states["A"].measures
+    b = plain.states["B"].measures
+    assert b["step"] != run.states["B"].measures["step"]
+    assert b["mean_stress"] == pytest.approx(20.0, rel=TOL)
+
+
 # spawned branch processes (~30 s), run by `make test-slow`
 @pytest.mark.slow
 def test_the_paths_at_twice_the_time_step_in_two_processes_equal_the_serial_run(
