@@ -35,6 +35,7 @@ from dem_taichi.scene.probing_sections import ProbingConfig as ProbingConfig
 from dem_taichi.scene.probing_sections import probing_settings as probing_settings
 from dem_taichi.scene.servo_keys import SERVO_KEYS
 from dem_taichi.scene.stability import check_time_step_factor
+from dem_taichi.scene.transition_keys import TRANSITION_KEYS
 
 __all__ = ["ProtocolConfig", "protocol_settings", "parse_number_list"]
 
@@ -241,122 +242,32 @@ class ProtocolConfig(SceneSection):
         default=True, metadata=_doc("run the unloading C→B at constant p (needs run_k0)", "-")
     )
     compression_increment: float = field(
-        default=0.02,
-        metadata=_range(
-            0.0,
-            0.2,
-            lo_open=True,
-            doc=("per-axis logarithmic strain of a (coarse) compression increment towards A"),
-            unit="1",
-        ),
+        default=0.02, metadata=TRANSITION_KEYS["compression_increment"]
     )
     min_compression_increment: float = field(
-        default=1e-5,
-        metadata=_range(
-            0.0,
-            0.2,
-            lo_open=True,
-            doc="smallest increment of the halving that resolves A",
-            unit="1",
-        ),
+        default=1e-5, metadata=TRANSITION_KEYS["min_compression_increment"]
     )
     transition_pressure_factor: float = field(
-        default=4.0,
-        metadata=_range(
-            1.0, doc="halving stops once a candidate A has p ≤ this × pressure_tolerance", unit="1"
-        ),
+        default=4.0, metadata=TRANSITION_KEYS["transition_pressure_factor"]
     )
-    gas_strain_rate: float = field(
-        default=0.05,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc="strain-rate cap of the compression while p ≤ pressure_tolerance",
-            unit="1/time",
-        ),
-    )
-    pressure_tolerance: float = field(
-        default=0.5,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc=(
-                "relaxed static p above which a state carries load (the A criterion; "
-                "the floor stress of the rate caps)"
-            ),
-            unit="force/length",
-        ),
-    )
-    coordination_min: float = field(
-        default=3.0,
-        metadata=_range(
-            0.0, doc="Z_m at or above which the contact network is taken as percolating", unit="1"
-        ),
-    )
-    confirm_increments: int = field(
-        default=2,
-        metadata=_range(
-            0,
-            100,
-            doc=(
-                "relaxed increments after a candidate A over which p must stay above the tolerance"
-            ),
-            unit="1",
-        ),
-    )
+    gas_strain_rate: float = field(default=0.05, metadata=TRANSITION_KEYS["gas_strain_rate"])
+    pressure_tolerance: float = field(default=0.5, metadata=TRANSITION_KEYS["pressure_tolerance"])
+    coordination_min: float = field(default=3.0, metadata=TRANSITION_KEYS["coordination_min"])
+    confirm_increments: int = field(default=2, metadata=TRANSITION_KEYS["confirm_increments"])
     confirm_increment: float | None = field(
-        default=None,
-        metadata={
-            **_range(
-                0.0,
-                0.2,
-                lo_open=True,
-                doc=(
-                    "per-axis logarithmic strain of each confirmation increment after a "
-                    "candidate A (unset: the candidate's own increment)"
-                ),
-                unit="1",
-            ),
-            "optional": True,
-        },
+        default=None, metadata=TRANSITION_KEYS["confirm_increment"]
     )
     max_compression_increments: int = field(
-        default=400,
-        metadata=_range(1, doc="give up (error) after this many compression increments", unit="1"),
+        default=400, metadata=TRANSITION_KEYS["max_compression_increments"]
     )
     relax_unbalanced_force: float = field(
-        default=1e-4,
-        metadata=_range(
-            0.0,
-            1.0,
-            lo_open=True,
-            doc="unbalanced-force ratio below which a state is relaxed (static)",
-            unit="1",
-        ),
+        default=1e-4, metadata=TRANSITION_KEYS["relax_unbalanced_force"]
     )
     relax_kinetic_energy_per_rod: float = field(
-        default=1.0,
-        metadata=_range(
-            0.0,
-            None,
-            lo_open=True,
-            doc="kinetic energy per rod below which a state is relaxed (with the UFR)",
-            unit="energy",
-        ),
+        default=1.0, metadata=TRANSITION_KEYS["relax_kinetic_energy_per_rod"]
     )
-    relax_check_steps: int = field(
-        default=500, metadata=_range(1, doc="steps between relaxation checks", unit="steps")
-    )
-    relax_max_steps: int = field(
-        default=200_000,
-        metadata=_range(
-            1,
-            doc=("most steps of one relaxation (then it continues, recorded as not relaxed)"),
-            unit="steps",
-        ),
-    )
+    relax_check_steps: int = field(default=500, metadata=TRANSITION_KEYS["relax_check_steps"])
+    relax_max_steps: int = field(default=200_000, metadata=TRANSITION_KEYS["relax_max_steps"])
     # the stress servo's keys (also unbalanced_force_max, inertial_number_safety below): their
     # metadata in scene/servo_keys.py
     stress_tolerance: float = field(default=1e-3, metadata=SERVO_KEYS["stress_tolerance"])
