@@ -121,7 +121,7 @@ def period_two_bodies(
     :data:`PERIOD_TWO_TOLERANCE` (a breathing orbit, whose amplitude changes from step to step,
     gives 0.86–1.49; a slow mode, whose kick is a small fraction of its velocity, far more).
     Such a mode appears where Δt exceeds a body's local stability limit (a body held by many stiff
-    contacts: 2/ω Δt for undamped springs, less with the contact dashpot and local damping), and
+    contacts: ω Δt < 2 for undamped springs, less with the contact dashpot and local damping), and
     contacts that open during each cycle bound it: it neither grows nor decays. The full-step
     velocity (v + v')/2 ≈ 0 of such a body, so the kinetic energy does not show it; the forces do.
 
@@ -129,9 +129,9 @@ def period_two_bodies(
     arrays (the half-step velocities); ``mass``, ``inertia``: a body's M and I; ``time_step`` Δt
     and ``local_damping`` α of the step that produced them. The signature holds in a relaxation at
     fixed cell (no cell-flow term in the kick). Returns the bodies matching it in translation or
-    rotation, and their share of Σ|F|: measured on a 1520-rod packing at twice the `paper` scene's
-    Δt, 42 rods held 99.9997 % of Σ|F| (``benchmarks/results/period_two.md``), the same packing
-    relaxed at Δt 0.03 %.
+    rotation, and their share of Σ|F|: on a 1520-rod packing at twice the `paper` scene's Δt,
+    71–78 rods held all of Σ|F| (share 1.0000); the same packing relaxed at the scene's Δt, 0.04
+    (``benchmarks/results/period_two.md``).
     """
     force, velocity = np.asarray(force, float), np.asarray(velocity, float)
     flipped = _reverses(force, velocity, mass, time_step, local_damping) | _reverses(
