@@ -84,6 +84,11 @@ dt_safety = {dt_safety}
 def pressed_chain(dt_safety: float) -> Simulation:
     """Four discs in a row, each overlapping its two neighbours by about 0.01 d across the
     periodic cell, slightly out of place so that every mode starts."""
+    return pressed_chain_on(dt_safety)
+
+
+def pressed_chain_on(dt_safety: float, **engine) -> Simulation:
+    """:func:`pressed_chain` with the engine's options (``arch``, ``execution``)."""
     overlap = 0.01
     length = 4 * (1.0 - overlap)
     x = 0.5 + np.arange(4) * (1.0 - overlap) + np.array([0.0, 0.002, -0.001, 0.0005])
@@ -91,7 +96,7 @@ def pressed_chain(dt_safety: float) -> Simulation:
         np.array([length, 6.0]), np.c_[x, np.full(4, 3.0)], np.zeros(4), np.zeros((4, 2)),
         np.zeros(4),
     )  # fmt: skip
-    return Simulation(chain_scene(dt_safety), initial=gas)
+    return Simulation(chain_scene(dt_safety), initial=gas, **engine)
 
 
 def test_past_the_local_stability_limit_the_relaxation_stops_and_says_what_to_change():
@@ -127,3 +132,42 @@ def test_the_message_names_the_path_time_step_factor_when_the_paths_integrate_at
                              sim.scene.integration)  # fmt: skip
     assert "2 x the scene's" in str(error) and "path_time_step_factor" in str(error)
     assert "dt_safety" not in str(error)
+
+
+GPU_SCRIPT = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from test_period_two import pressed_chain_on
+from dem_taichi.engine.failures import BlowUpError
+from dem_taichi.protocol.quasistatic import relax
+result = {}
+for dt_safety in (0.15, 0.3):
+    sim = pressed_chain_on(dt_safety, arch="gpu", execution=sys.argv[2])
+    try:
+        relaxed = relax(sim, "relax", 1e-4, 1e-6, 500, 6000)[1]
+        result[str(dt_safety)] = ["relaxed" if relaxed else "not relaxed", []]
+    except BlowUpError:
+        result[str(dt_safety)] = ["period two", sim.period_two().bodies.tolist()]
+print(json.dumps(result))
+"""
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("execution", ["parallel", "gather"])
+def test_on_a_gpu_the_chain_stops_and_relaxes_as_on_the_cpu(execution):
+    """The period-two stop reads the device's arrays (in a subprocess: its own runtime)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from dem_taichi.engine.runtime import cuda_available
+
+    if not cuda_available():
+        pytest.skip("no CUDA device")
+    out = subprocess.run(
+        [sys.executable, "-c", GPU_SCRIPT, str(Path(__file__).parent), execution],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result == {"0.15": ["relaxed", []], "0.3": ["period two", [0, 1, 2, 3]]}
