@@ -109,16 +109,24 @@ def _excludes_zero(mean: float, half: float) -> bool:
     return math.isfinite(half) and abs(mean) > half
 
 
+def common_variants(seeds: list[dict]) -> list[str]:
+    """The variants every seed ran, in the first seed's order: a variant run on some seeds only
+    has no paired interval over the seeds."""
+    return [v for v in seeds[0]["variants"] if all(v in s["variants"] for s in seeds)]
+
+
 def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
     """The speed and findings tables of every variant against ``base``; with ``null`` (the name
     of a variant that should change nothing), each variant's paired differences are shown
     beside the null pair's, and a finding is flagged when the variant's 95 % interval excludes 0
     while the null pair's does not (the criterion of ``study_servo.md``); without it, the
     criterion |mean difference| ≤ 0.5 × the base's seed standard deviation."""
-    variants = [v for v in seeds[0]["variants"] if v != base]
+    variants = [v for v in common_variants(seeds) if v != base]
     labels = ", ".join(str(s["seed"]) for s in seeds)
+    left_out = sorted({v for s in seeds for v in s["variants"]} - set(common_variants(seeds)))
     lines = [
         f"Seeds {labels} ({len(seeds)}); each variant's branches start from the seed's state A.",
+        *([f"Left out (not run on every seed): {', '.join(left_out)}."] if left_out else []),
         "",
         "### Speed (branches from A)",
         "",
@@ -238,7 +246,7 @@ def overlap_table(seeds: list[dict], base: str, null: str) -> list[str]:
     ]  # fmt: skip
     null_ratios = {m: ratio_interval([overlap_ratio(s, null, base, m) for s in have])[0]
                    for m, _ in OVERLAP_MEASURES}  # fmt: skip
-    for name in [v for v in have[0]["variants"] if v != base]:
+    for name in [v for v in common_variants(have) if v != base]:
         for measure, label in OVERLAP_MEASURES:
             per_seed = [overlap_ratio(s, name, base, measure) for s in have]
             ratio, low, high = ratio_interval(per_seed)
@@ -250,11 +258,11 @@ def overlap_table(seeds: list[dict], base: str, null: str) -> list[str]:
                 f"{ratio:.3f} [{low:.3f}, {high:.3f}] | {shown} |"
             )
     lines += ["", "Largest overlap (per cent of d) at " + states + ":", "",
-              "| seed | " + " | ".join(v for v in have[0]["variants"]) + " |",
-              "|---|" + "---|" * len(have[0]["variants"])]  # fmt: skip
+              "| seed | " + " | ".join(common_variants(have)) + " |",
+              "|---|" + "---|" * len(common_variants(have))]  # fmt: skip
     for s in have:
         cells = [", ".join(f"{100 * _value(s, v, f'max_overlap@{st}'):.2f}"
-                           for st in OVERLAP_STATES) for v in s["variants"]]  # fmt: skip
+                           for st in OVERLAP_STATES) for v in common_variants(have)]  # fmt: skip
         lines.append(f"| {s['seed']} | " + " | ".join(cells) + " |")
     return lines
 

@@ -147,3 +147,11 @@ def test_a_failed_branch_is_listed_and_its_variant_has_no_steps(tables):
     row = next(line for line in lines if line.startswith("| fast |"))
     assert "1,500, failed" in row
     assert "- seed 4, fast: k0: [A_to_C] stress targets [7.26] not reached" in lines
+
+
+def test_a_variant_not_run_on_every_seed_is_left_out_and_said_so(tables):
+    seeds = [_seed(3, pooled=True), _seed(4, pooled=True)]
+    seeds[0]["variants"]["extra"] = seeds[0]["variants"]["fast"]
+    text = "\n".join(tables.table(seeds, "base"))
+    assert "Left out (not run on every seed): extra." in text
+    assert "| extra |" not in text and "| fast |" in text
