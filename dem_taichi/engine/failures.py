@@ -3,7 +3,7 @@
 Every message names the likely cause and the setting to change (plain Python and numpy, no
 Taichi). A blow-up need not diverge: past a body's local stability limit the leapfrog step can
 settle into a bounded oscillation of period two steps (:func:`period_two_bodies`), which a
-relaxation cannot remove (:func:`period_two_error`).
+relaxation removes slowly if at all (:func:`period_two_error`).
 """
 
 from __future__ import annotations
@@ -168,5 +168,5 @@ def period_two_error(
         f"[{stage}] relaxation stopped at step {step}: {len(found.bodies)} bodies ({first}{more}) "
         f"oscillate with a period of two time steps, {found.share:.0%} of the unbalanced force; "
         f"the time step {time_step:.4g} is beyond their local stability limit (bodies held by "
-        f"many stiff contacts) and no number of steps will relax them: {fix}"
+        f"many stiff contacts), a mode the relaxation removes slowly if at all: {fix}"
     )

@@ -402,7 +402,8 @@ class Simulation:
 
     def period_two(self) -> PeriodTwo:
         """The bodies oscillating with a period of two steps (:meth:`SimulationViews.period_two`):
-        a time step beyond their local stability limit, which a relaxation cannot remove."""
+        a time step beyond their local stability limit; a relaxation removes it slowly if at
+        all."""
         return self.views.period_two()
 
     def total_energy(self) -> float:

@@ -79,8 +79,8 @@ def relax(
     may end it early (returns not relaxed). When ``max_steps`` ran out and most of the
     unbalanced force is in bodies oscillating with a period of two steps (the time step beyond
     their local stability limit; :func:`dem_taichi.engine.failures.period_two_bodies`), raises
-    :class:`~dem_taichi.engine.failures.BlowUpError` saying so: more steps would not relax them
-    (the damped relaxation; FIRE's kick is another). Returns (measures, relaxed, steps run).
+    :class:`~dem_taichi.engine.failures.BlowUpError` saying so: more steps relax them slowly if
+    at all (the damped relaxation; FIRE's kick is another). Returns (measures, relaxed, steps run).
     Each chunk is a minimising call (``CellControl.relaxation``): the scene's
     ``[integration] relaxation`` integrates it with the damped dynamics (the default) or with FIRE.
     """
@@ -98,7 +98,7 @@ def relax(
         if give_up is not None and give_up(measures, steps):
             return measures, False, steps
     if max_steps > 0 and sim.scene.integration.relaxation_method != "fire":
-        found = sim.period_two()  # a bounded blow-up: no number of steps relaxes it
+        found = sim.period_two()  # a bounded blow-up: more steps barely relax it
         if found.share >= PERIOD_TWO_SHARE:
             raise period_two_error(
                 found, stage, sim.step, sim.time_step, sim.scene.time_step, sim.scene.integration

@@ -5,7 +5,7 @@ The engine case is a periodic chain of four discs, each pressed by its two neigh
 (overlap 0.01 d): its stiffest mode, the discs moving in antiphase, has ω² = 4 k_n/m against the
 2 k_n/m of the contact that sets Δt, and with the scene's contact dashpot (e_n = 0.5) and local
 damping (0.2) its leapfrog step is unstable at dt_safety 0.3 but not at 0.15. The contacts open
-during each cycle, which bounds the oscillation: the run does not diverge, it never relaxes.
+during each cycle, which bounds the oscillation: the run does not diverge, and it does not relax.
 """
 
 import numpy as np
