@@ -1,5 +1,5 @@
-"""A time step past a body's local stability limit: the bounded period-two oscillation that no
-relaxation removes (dem_taichi.engine.failures.period_two_bodies; benchmarks/results/period_two.md).
+"""A time step past a body's local stability limit: the bounded period-two oscillation that the
+relaxation barely removes (dem_taichi.engine.failures.period_two_bodies; benchmarks/results/period_two.md).
 
 The engine case is a periodic chain of four discs, each pressed by its two neighbours
 (overlap 0.01 d): its stiffest mode, the discs moving in antiphase, has ω² = 4 k_n/m against the
@@ -34,7 +34,7 @@ def test_a_body_whose_kick_reverses_its_velocity_is_found_and_weighted_by_its_fo
     force = np.array([[27.0, -4.0], [0.3, 0.1], [-2.0, 0.5], [0.0, 0.0]])
     velocity = np.array([
         _orbit_velocity(force[0], MASS),  # caught in the orbit
-        [30.0, 10.0],  # a slow mode being slowed down: its kick is 1e-4 of its velocity
+        [-30.0, -10.0],  # a slow mode being slowed down: its kick is ~1e-5 of its velocity
         -_orbit_velocity(force[2], MASS),  # the same size, but along its force: accelerating
         [1.0, 0.0],  # free flight
     ])  # fmt: skip
