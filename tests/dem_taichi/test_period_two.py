@@ -1,5 +1,6 @@
 """A time step past a body's local stability limit: the bounded period-two oscillation that the
-relaxation barely removes (dem_taichi.engine.failures.period_two_bodies; benchmarks/results/period_two.md).
+relaxation barely removes (dem_taichi.engine.failures.period_two_bodies;
+benchmarks/results/period_two.md).
 
 The engine case is a periodic chain of four discs, each pressed by its two neighbours
 (overlap 0.01 d): its stiffest mode, the discs moving in antiphase, has ω² = 4 k_n/m against the
