@@ -121,9 +121,10 @@ def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
     beside the null pair's, and a finding is flagged when the variant's 95 % interval excludes 0
     while the null pair's does not (the criterion of ``study_servo.md``); without it, the
     criterion |mean difference| ≤ 0.5 × the base's seed standard deviation."""
-    variants = [v for v in common_variants(seeds) if v != base]
+    common = common_variants(seeds)
+    variants = [v for v in common if v != base]
     labels = ", ".join(str(s["seed"]) for s in seeds)
-    left_out = sorted({v for s in seeds for v in s["variants"]} - set(common_variants(seeds)))
+    left_out = sorted({v for s in seeds for v in s["variants"]} - set(common))
     lines = [
         f"Seeds {labels} ({len(seeds)}); each variant's branches start from the seed's state A.",
         *([f"Left out (not run on every seed): {', '.join(left_out)}."] if left_out else []),
@@ -246,7 +247,8 @@ def overlap_table(seeds: list[dict], base: str, null: str) -> list[str]:
     ]  # fmt: skip
     null_ratios = {m: ratio_interval([overlap_ratio(s, null, base, m) for s in have])[0]
                    for m, _ in OVERLAP_MEASURES}  # fmt: skip
-    for name in [v for v in common_variants(have) if v != base]:
+    common = common_variants(have)
+    for name in [v for v in common if v != base]:
         for measure, label in OVERLAP_MEASURES:
             per_seed = [overlap_ratio(s, name, base, measure) for s in have]
             ratio, low, high = ratio_interval(per_seed)
@@ -258,11 +260,11 @@ def overlap_table(seeds: list[dict], base: str, null: str) -> list[str]:
                 f"{ratio:.3f} [{low:.3f}, {high:.3f}] | {shown} |"
             )
     lines += ["", "Largest overlap (per cent of d) at " + states + ":", "",
-              "| seed | " + " | ".join(common_variants(have)) + " |",
-              "|---|" + "---|" * len(common_variants(have))]  # fmt: skip
+              "| seed | " + " | ".join(common) + " |",
+              "|---|" + "---|" * len(common)]  # fmt: skip
     for s in have:
         cells = [", ".join(f"{100 * _value(s, v, f'max_overlap@{st}'):.2f}"
-                           for st in OVERLAP_STATES) for v in common_variants(have)]  # fmt: skip
+                           for st in OVERLAP_STATES) for v in common]  # fmt: skip
         lines.append(f"| {s['seed']} | " + " | ".join(cells) + " |")
     return lines
 

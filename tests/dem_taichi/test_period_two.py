@@ -82,14 +82,10 @@ dt_safety = {dt_safety}
     )
 
 
-def pressed_chain(dt_safety: float) -> Simulation:
-    """Four discs in a row, each overlapping its two neighbours by about 0.01 d across the
-    periodic cell, slightly out of place so that every mode starts."""
-    return pressed_chain_on(dt_safety)
-
-
 def pressed_chain_on(dt_safety: float, **engine) -> Simulation:
-    """:func:`pressed_chain` with the engine's options (``arch``, ``execution``)."""
+    """Four discs in a row, each overlapping its two neighbours by about 0.01 d across the
+    periodic cell, slightly out of place so that every mode starts; ``engine``: the
+    simulation's options (``arch``, ``execution``)."""
     overlap = 0.01
     length = 4 * (1.0 - overlap)
     x = 0.5 + np.arange(4) * (1.0 - overlap) + np.array([0.0, 0.002, -0.001, 0.0005])
@@ -101,7 +97,7 @@ def pressed_chain_on(dt_safety: float, **engine) -> Simulation:
 
 
 def test_past_the_local_stability_limit_the_relaxation_stops_and_says_what_to_change():
-    sim = pressed_chain(0.3)
+    sim = pressed_chain_on(0.3)
     with pytest.raises(BlowUpError) as caught:
         relax(sim, "relax", 1e-4, 1e-6, 500, 6000)
     message = str(caught.value)
@@ -117,14 +113,14 @@ def test_past_the_local_stability_limit_the_relaxation_stops_and_says_what_to_ch
 
 
 def test_within_the_limit_the_same_chain_relaxes():
-    sim = pressed_chain(0.15)
+    sim = pressed_chain_on(0.15)
     measures, relaxed, steps = relax(sim, "relax", 1e-4, 1e-6, 500, 6000)
     assert relaxed and steps < 6000
     assert sim.period_two().bodies.size == 0
 
 
 def test_the_message_names_the_path_time_step_factor_when_the_paths_integrate_at_a_multiple():
-    sim = pressed_chain(0.15)
+    sim = pressed_chain_on(0.15)
     found = period_two_bodies(
         np.ones((2, 2)), -np.ones((2, 2)) * DT * 1.2 / 2, np.zeros(2), np.zeros(2), 1.0, 1.0,
         DT, ALPHA,
