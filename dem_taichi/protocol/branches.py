@@ -12,7 +12,10 @@ of the serial run, which they equal (the serial engine is deterministic).
 Each finished branch's outcome is also saved in the run's ``resume/`` folder
 (:mod:`dem_taichi.protocol.resume`, data-only files tied to the run's id and scene hash), by the
 process that ran it (:func:`run_branch`, or :func:`run_branch_saved` in the serial run), so that
-an interrupted run resumes with only the branches still missing.
+an interrupted run resumes with only the branches still missing; while it runs, a branch saves
+points to go on from (:class:`dem_taichi.protocol.resume.BranchPoint`, after a relaxed path
+state about every :data:`dem_taichi.protocol.paths.BRANCH_SAVE_SECONDS`), so that a stopped
+branch goes on from its last point, to the outputs of a run never stopped.
 
 A worker reads state A from the checkpoint named relative to the run folder it is given
 (``state_A.npz``, checked to hold the run's scene), never by an absolute path saved earlier: a
@@ -39,12 +42,16 @@ from dem_taichi.protocol.records import (
     RunLog,
 )
 from dem_taichi.protocol.resume import (
+    BranchPoint,
     RecordingWriter,
     ResumeFileError,
     RunIdentity,
     inside_run,
+    load_branch_point,
     relative_to_run,
+    remove_branch_point,
     save_branch,
+    save_branch_point,
 )
 from dem_taichi.protocol.worker_lifetime import die_with_parent
 from dem_taichi.scene.probing_sections import probing_settings
@@ -97,7 +104,8 @@ def run_branch_on(runner: ProtocolRunner, branch: Branch) -> None:
         if branch.kind == "isotropic":
             runner.isotropic_path()
         elif branch.kind == "k0":
-            runner.k0_path()
+            if not runner.resuming("C_to_B"):  # a point inside C→B: A→C is done
+                runner.k0_path()
             if runner.config.run_unloading:
                 runner.unloading_path()
         else:
@@ -157,43 +165,86 @@ def run_branch(
 
     ``checkpoint_A`` is relative to the run folder ``run.path`` (resolved there, so a moved
     folder works); the scene, with its protocol and probing sections, comes from the checkpoint.
-    ``save_states``: the branch writes its state files into the run folder."""
+    ``save_states``: the branch writes its state files into the run folder. A branch with a
+    saved point (``branch_<index>_point.npz``) goes on from it; points are saved as it runs."""
     from dem_taichi.engine.simulation import Simulation
     from dem_taichi.protocol.probing import ProbeRecorder
 
     source = inside_run(checkpoint_A, run.path, run.path / "run.json")
     sim = Simulation.from_checkpoint(source, arch=arch, precision=precision)
     config, probing = protocol_settings(sim.scene), probing_settings(sim.scene)
-    history = _RecordList()
-    log = RunLog()
+    point = load_branch_point(run, index, branch)
+    history = _RecordList(point.history if point is not None else ())
+    log = point.log if point is not None else RunLog()
     recorder = ProbeRecorder(probing, config, log)
     runner = ProtocolRunner(sim, config, probing, history, None, recorder, progress, log=log)
     runner.out_dir = run.path if save_states else None
     runner.bars = False  # beside other branch processes on one terminal: lines, not bars
     runner.state_A = sim.get_state()
     log.states["A"] = state_A
+    _go_on_from(runner, branch, point)
+
+    def save(progress: dict) -> None:
+        point = BranchPoint(list(history), log, sim.get_state(), progress)
+        save_branch_point(run, index, branch, point)
+
+    runner.save_branch_points(save)
     run_branch_on(runner, branch)
+    runner.save_branch_points(None)
     del log.states["A"]
     outcome = BranchOutcome(branch=branch, history=list(history), log=log)
     save_branch(run, index, outcome)
+    remove_branch_point(run, index)
     return outcome
+
+
+def _go_on_from(runner: ProtocolRunner, branch: Branch, point: BranchPoint | None) -> None:
+    """Set ``runner`` to go on from a branch's saved ``point`` (nothing for None), saying so."""
+    if point is None:
+        return
+    runner.resume_branch = dict(point.progress, state=point.state)
+    runner._say(
+        f"[resume] {branch.label}: from {point.progress['stage']} after its "
+        f"{point.progress['increment']} path state(s)"
+    )
 
 
 def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: RunIdentity) -> None:
     """Run one branch on the serial ``runner`` as :func:`run_branch_on` does (its records reach
     the run's writers as they come), with a log of its own merged into the run's at the end,
-    and save its outcome as the ``index``-th branch in the ``resume/`` folder of ``run``."""
+    and save its outcome as the ``index``-th branch in the ``resume/`` folder of ``run``. A
+    branch with a saved point goes on from it (what it recorded before reaches the writers
+    first); points are saved as it runs."""
     main_log, history = runner.log, runner.history
     recorder = runner.probe_hook
-    log = RunLog()
+    point = load_branch_point(run, index, branch)
+    log = point.log if point is not None else RunLog()
     log.states["A"] = main_log.states["A"]
     recording = RecordingWriter(history) if history is not None else None
+    if point is not None:  # the branch's records so far, as a run never stopped wrote them
+        for record in point.history:
+            if recording is not None:
+                recording.append(record)
+        if runner.relaxed_writer is not None:
+            for state in log.path_states:
+                runner.relaxed_writer.append(state.measures)
     runner.log, runner.history = log, recording
     if recorder is not None:
         recorder.log = log
+    _go_on_from(runner, branch, point)
+
+    def save(progress: dict) -> None:
+        records = recording.records if recording is not None else []
+        save_branch_point(run, index, branch, BranchPoint(
+            list(records), log, runner.sim.get_state(), progress
+        ))  # fmt: skip
+
+    runner.save_branch_points(save)
     try:
         run_branch_on(runner, branch)
     finally:
+        runner.save_branch_points(None)
+        runner.resume_branch = None
         runner.log, runner.history = main_log, history
         if recorder is not None:
             recorder.log = main_log
@@ -201,6 +252,7 @@ def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: Ru
     main_log.merge(log)
     records = recording.records if recording is not None else []
     save_branch(run, index, BranchOutcome(branch=branch, history=records, log=log))
+    remove_branch_point(run, index)
 
 
 def merge_branch(runner, history, relaxed, outcome: BranchOutcome) -> None:

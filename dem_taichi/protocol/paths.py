@@ -57,7 +57,12 @@ from dem_taichi.scene.protocol_sections import ProtocolConfig
 if TYPE_CHECKING:
     from dem_taichi.engine.simulation import Simulation
 
-__all__ = ["ProbeHook", "ProtocolRunner"]
+__all__ = ["ProbeHook", "ProtocolRunner", "BRANCH_SAVE_SECONDS"]
+
+#: wall seconds between a branch's resume points (:meth:`ProtocolRunner.branch_progress`): a
+#: point costs one engine state on disk (10 MB at the study's size), a path state there takes
+#: minutes; the smoke scene's states, a fraction of a second, save once per branch at most
+BRANCH_SAVE_SECONDS = 300.0
 
 
 def k0_step_target(
@@ -136,6 +141,12 @@ class ProtocolRunner:
         # run's resume point inside the stage; resume_ageing, the progress of a save to go on from
         self.save_point: Callable[[dict], None] | None = None
         self.resume_ageing: dict | None = None
+        # resumable branches (dem_taichi.protocol.branches): branch_save(progress) writes the
+        # branch's resume point after a path state; resume_branch, a saved point to go on from
+        # (its progress, with the engine state as "state")
+        self.branch_save: Callable[[dict], None] | None = None
+        self.resume_branch: dict | None = None
+        self._last_branch_save = 0.0
         self._since_output = 0
         self.out_dir: Path | None = None
         self.bars = progress and use_bars()  # tqdm bars per stage on a terminal (else lines)
@@ -277,6 +288,47 @@ class ProtocolRunner:
             with doing("probe"):
                 self.probe_hook(self, state)
 
+    # -- resume points inside a branch ----------------------------------------------------------
+    def save_branch_points(self, save: Callable[[dict], None] | None) -> None:
+        """From now on call ``save(progress)`` after a relaxed path state about every
+        :data:`BRANCH_SAVE_SECONDS` (None: no more points); ``progress`` as
+        :meth:`branch_progress` returns it."""
+        self.branch_save = save
+        self._last_branch_save = time.perf_counter()
+
+    def branch_progress(self, stage: str, increment: int, measures: Measures) -> dict:
+        """Where a branch stands after the path state ``increment`` of ``stage`` (0: none of
+        the stage's yet; C→B before its first) with ``measures``: all a path needs to go on."""
+        return {
+            "stage": stage, "increment": int(increment), "measures": dict(measures),
+            "since_output": int(self._since_output),
+            "servo_times": dict(self.stress_servo.memory.times),
+        }  # fmt: skip
+
+    def _branch_point(self, stage: str, increment: int, measures: Measures) -> None:
+        """Save the branch's resume point (:meth:`save_branch_points`) if it is time."""
+        if self.branch_save is None:
+            return
+        if time.perf_counter() - self._last_branch_save < BRANCH_SAVE_SECONDS:
+            return
+        self.branch_save(self.branch_progress(stage, increment, measures))
+        self._last_branch_save = time.perf_counter()
+
+    def resuming(self, stage: str) -> bool:
+        """Whether the branch goes on from a saved point inside ``stage``."""
+        return self.resume_branch is not None and self.resume_branch["stage"] == stage
+
+    def _take_resume_point(self) -> tuple[int, Measures]:
+        """Put the engine, the history cadence and the servo where the saved point left them;
+        returns (the path states done in its stage, the last one's measures)."""
+        point, self.resume_branch = self.resume_branch, None
+        assert point is not None  # resuming(stage) was asked first
+        self.sim.set_state(point["state"])
+        self._since_output = int(point["since_output"])
+        self.stress_servo.memory = ServoMemory(dict(point["servo_times"]))
+        measures: Measures = point["measures"]  # type: ignore[assignment]
+        return int(point["increment"]), measures
+
     # -- stage 0 ----------------------------------------------------------------------------
     def aggregate(self) -> dict:
         """The aggregation (gas-ageing) stage before the compression to A
@@ -361,6 +413,8 @@ class ProtocolRunner:
         progress = self._begin_stage(stage, n)
         state = None
         k = 0
+        if self.resuming(stage):
+            k, measures = self._take_resume_point()
         while True:
             k += 1
             s_yy, k0 = k0_step_target(
@@ -386,6 +440,10 @@ class ProtocolRunner:
             )
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
+            if not last:
+                self._branch_point(stage, k, measures)
+            elif self.config.run_unloading:  # C: the unloading goes on from here
+                self._branch_point("C_to_B", 0, measures)
             t0 = time.perf_counter()
             if last:
                 break
@@ -399,15 +457,20 @@ class ProtocolRunner:
         """C→B: both axes servoed, p = p_C, q decreasing linearly to 0 (state B')."""
         stage = "C_to_B"
         t0 = time.perf_counter()
-        if "C" not in self.states or self.state_C is None:
+        start = 0
+        if self.resuming(stage):  # "C" is in the saved log
+            start, measures = self._take_resume_point()
+        elif "C" not in self.states or self.state_C is None:
             raise ProtocolError("state C is not known yet: run k0_path first")
-        self.sim.set_state(self.state_C)
-        measures = self.states["C"].measures
-        p_c, q_c = measures["mean_stress"], measures["deviatoric_stress"]
+        else:
+            self.sim.set_state(self.state_C)
+            measures = self.states["C"].measures
+        at_c = self.states["C"].measures
+        p_c, q_c = at_c["mean_stress"], at_c["deviatoric_stress"]
         n = self.config.unloading_increments
         progress = self._begin_stage(stage, n)
         state = None
-        for k in range(1, n + 1):
+        for k in range(start + 1, n + 1):
             q = q_c * (1.0 - k / n)
             targets = np.array([p_c - 0.5 * q, p_c + 0.5 * q])
             measures, it = self.servo(stage, (0, 1), np.eye(2), targets, measures, k == n)
@@ -421,6 +484,8 @@ class ProtocolRunner:
             )
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
+            if k < n:
+                self._branch_point(stage, k, measures)
             t0 = time.perf_counter()
         self._record(stage).seconds += time.perf_counter() - t0
         self._end_stage()
@@ -450,8 +515,13 @@ class ProtocolRunner:
             p_targets = np.concatenate([p_targets, beyond_targets(target, beyond, p_a, n)])
         total = len(p_targets)
         progress = self._begin_stage(tag, total)
-        labelled = None
+        labelled, start = None, 0
+        if self.resuming(stage):
+            start, measures = self._take_resume_point()
+            labelled = self.states.get(end_label)  # passed already when past the target
         for k, p in enumerate(p_targets, 1):
+            if k <= start:
+                continue
             targets = (p * (1.0 - 0.5 * eta), p * (1.0 + 0.5 * eta))
             # the labelled state and every state past it are held to the final tolerance
             final = k >= n
@@ -464,6 +534,8 @@ class ProtocolRunner:
             progress.step(k, f"[{tag}] {k}/{total} p={p:.4g} v={measures['specific_volume']:.4f}")
             self._record(stage).seconds += time.perf_counter() - t0
             self._maybe_probe(state, last=False)
+            if k < total:
+                self._branch_point(stage, k, measures)
             t0 = time.perf_counter()
         self._record(stage).seconds += time.perf_counter() - t0
         self._end_stage()

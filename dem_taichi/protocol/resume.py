@@ -15,15 +15,21 @@ from A (:mod:`dem_taichi.protocol.branches`: A→B; A→C with C→B; each radia
   (``aggregation_rod_model = "rigid"``) is saved only once aged;
 - ``branch_<k>.npz`` when the k-th branch has finished: its
   :class:`dem_taichi.protocol.records.BranchOutcome` (history records and log), written by the
-  process that ran it.
+  process that ran it;
+- ``branch_<k>_point.npz`` while the k-th branch runs: its records and log so far, the engine
+  state and where the branch stood (:class:`BranchPoint`), rewritten after a relaxed path state
+  about every :data:`dem_taichi.protocol.paths.BRANCH_SAVE_SECONDS` of wall time, deleted when
+  the branch's outcome is saved. A branch at the study's size takes an hour; this is what a
+  stopped one goes on from.
 
 A resume (``python -m dem_taichi protocol SCENE --out DIR --resume``, or ``run_protocol(...,
 resume=True)``) checks the run's record (the same scene, by hash: :func:`dem_taichi.io.
 run_directory.reopen_run`), writes the history files again from the saved records, and runs
-only the branches without a saved outcome, from the saved state A. The serial engine is
-deterministic, so the resumed run's outputs equal those of a run never interrupted (tested
-bitwise on the smoke protocol). The work lost by an interruption is at most the branches that
-were running; a run stopped before A starts again from the gas, or from its last ageing save
+only the branches without a saved outcome, from the saved state A, or from a branch's last
+point. The serial engine is deterministic, so the resumed run's outputs equal those of a run
+never interrupted (tested bitwise on the smoke protocol). The work lost by an interruption is at
+most what the running branches did since their last point; a run stopped before A starts again
+from the gas, or from its last ageing save
 (``ageing.npz``: the thermostat's draws are seeded by the step, so the resumed ageing draws what
 the uninterrupted one drew, and the outputs are again bit for bit those of a run never
 interrupted). SIGINT/SIGTERM stop the run with one line saying how to resume (exit code
@@ -78,6 +84,11 @@ __all__ = [
     "save_ageing",
     "load_ageing",
     "branch_file",
+    "BranchPoint",
+    "branch_point_file",
+    "save_branch_point",
+    "load_branch_point",
+    "remove_branch_point",
     "refuse_pickles",
     "save_stage_a",
     "load_stage_a",
@@ -144,6 +155,22 @@ class AgeingPoint:
     progress: dict
 
 
+@dataclass(frozen=True)
+class BranchPoint:
+    """What a resume needs from a branch part-way (``branch_<k>_point.npz``): its history
+    records and :class:`~dem_taichi.protocol.records.RunLog` so far (the log holds state A as
+    the branch's logs do while they run), the engine state after its last relaxed path state,
+    and ``progress``, where it stood (:meth:`dem_taichi.protocol.paths.ProtocolRunner.
+    branch_progress`: ``stage`` the path's stage, ``increment`` the path states done in it,
+    ``measures`` the last one's, ``since_output`` the history cadence's count,
+    ``servo_times`` the servo's time constants)."""
+
+    history: list[dict]
+    log: Any  # RunLog
+    state: dict[str, np.ndarray]  # Simulation.get_state() after the last path state
+    progress: dict
+
+
 class RecordingWriter:
     """Writes through to a history writer and keeps a copy of every record (for ``A.npz``)."""
 
@@ -173,6 +200,11 @@ def ageing_file(out_dir: str | Path) -> Path:
 def branch_file(out_dir: str | Path, index: int) -> Path:
     """``<run>/resume/branch_<index>.npz``."""
     return Path(out_dir) / RESUME_DIR / f"branch_{index}.npz"
+
+
+def branch_point_file(out_dir: str | Path, index: int) -> Path:
+    """``<run>/resume/branch_<index>_point.npz``."""
+    return Path(out_dir) / RESUME_DIR / f"branch_{index}_point.npz"
 
 
 def refuse_pickles(out_dir: str | Path) -> None:
@@ -233,7 +265,10 @@ def _header(run: RunIdentity, kind: str, **extra: Any) -> dict[str, Any]:
 
 
 def _save(path: Path, header: dict[str, Any], payload: Any) -> Path:
-    """Write ``payload`` with ``header`` atomically (temporary file, fsync, os.replace)."""
+    """Write ``payload`` with ``header`` atomically (temporary file, fsync, os.replace); a dict
+    payload (the fields of a saved stage) in sorted order, so that it stays a plain object."""
+    if isinstance(payload, dict):
+        payload = dict(sorted(payload.items()))
     tree, arrays = encode(payload)
     return save_checkpoint(path, arrays, dict(header, payload=tree))
 
@@ -392,6 +427,59 @@ def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, 
     return done
 
 
+# -- inside a branch -------------------------------------------------------------------------
+_REMEDY_POINT = "delete it and resume again (the branch then starts again from A)"
+#: the stages a branch's point may stand in, by the branch's kind
+_POINT_STAGES = {"isotropic": ("A_to_B",), "k0": ("A_to_C", "C_to_B"), "radial": ("radial",)}
+
+
+def save_branch_point(run: RunIdentity, index: int, branch: Branch, point: BranchPoint) -> Path:
+    """Write (replace) ``resume/branch_<index>_point.npz`` of ``run`` for ``branch``."""
+    saved = dataclasses.replace(point, log=_log_relative(point.log, run.path))
+    header = _header(run, "branch_point", index=int(index), branch=branch.label)
+    return _save(branch_point_file(run.path, index), header, {
+        f.name: getattr(saved, f.name) for f in dataclasses.fields(BranchPoint)
+    })  # fmt: skip
+
+
+def load_branch_point(run: RunIdentity, index: int, branch: Branch) -> BranchPoint | None:
+    """The last point saved inside the ``index``-th branch of ``run`` (``branch``), None when
+    there is none; refuses (:class:`ResumeFileError`) a file that is damaged, not this run's
+    or of another branch."""
+    path = branch_point_file(run.path, index)
+    if not path.exists():
+        return None
+    values = _load(path, run, "branch_point", _REMEDY_POINT, index=index, branch=branch.label)
+    from dem_taichi.protocol.records import RunLog
+
+    kinds = {"history": list, "log": RunLog, "state": dict, "progress": dict}
+    if not (isinstance(values, dict) and set(values) == set(kinds)):
+        raise _refusal(path, "damaged: not the fields of a branch point", _REMEDY_POINT)
+    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
+    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
+        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_POINT)
+    progress = values["progress"]
+    if progress.get("stage") not in _POINT_STAGES[branch.kind]:
+        raise _refusal(
+            path, f"stands inside {progress.get('stage')}, which the branch {branch.label!r} "
+            "does not run", _REMEDY_POINT,
+        )  # fmt: skip
+    if (
+        not isinstance(progress.get("increment"), int)
+        or not isinstance(progress.get("measures"), dict)
+        or not isinstance(progress.get("since_output"), int)
+        or not isinstance(progress.get("servo_times"), dict)
+    ):
+        raise _refusal(path, "damaged: not where a branch stood", _REMEDY_POINT)
+    values["log"] = _log_absolute(values["log"], run.path, path)
+    return BranchPoint(**values)
+
+
+def remove_branch_point(run: RunIdentity, index: int) -> None:
+    """Delete the ``index``-th branch's point (its outcome is saved: the point is spent)."""
+    branch_point_file(run.path, index).unlink(missing_ok=True)
+
+
 def saved_summary(out_dir: str | Path, branches: Sequence[Branch]) -> str:
     """What a resume of the run in ``out_dir`` would start from, in words."""
     if not stage_a_file(out_dir).exists():
@@ -399,4 +487,9 @@ def saved_summary(out_dir: str | Path, branches: Sequence[Branch]) -> str:
             return "state A was not reached (a resume continues the aggregation stage's last save)"
         return "state A was not reached (a resume starts again from the gas)"
     done = [b for i, b in enumerate(branches) if branch_file(out_dir, i).exists()]
-    return f"state A and {len(done)} of {len(branches)} branches from A are saved"
+    text = f"state A and {len(done)} of {len(branches)} branches from A are saved"
+    part = [
+        b.label for i, b in enumerate(branches)
+        if not branch_file(out_dir, i).exists() and branch_point_file(out_dir, i).exists()
+    ]  # fmt: skip
+    return text + (f", and part of {', '.join(part)}" if part else "")

@@ -21,7 +21,9 @@ kept), arrays with their dtype and shape. A tree that does not follow this layou
 Tags (a JSON object with a single key starting with ``$``): ``$float`` (hex bytes of a
 non-finite float), ``$scalar`` ([dtype, hex bytes]), ``$array`` (name of the array member),
 ``$tuple`` (items), ``$dict`` ([[key, value], ...], for dicts whose keys are not all plain
-strings), ``$obj`` ([type name, {field: value}]). A plain JSON object is a dict of strings.
+strings, or not in sorted order: the checkpoint writes its JSON with sorted keys, so only a
+pair list keeps another order, e.g. the labelled states of a run log, A, B, C, B′), ``$obj``
+([type name, {field: value}]). A plain JSON object is a dict of strings.
 """
 
 from __future__ import annotations
@@ -113,7 +115,8 @@ def _encode_array(value: np.ndarray, arrays: dict[str, np.ndarray], where: str) 
 
 
 def _encode_dict(value: dict, arrays: dict[str, np.ndarray], where: str) -> dict:
-    if all(isinstance(k, str) and not k.startswith("$") for k in value):
+    keys = list(value)
+    if all(isinstance(k, str) and not k.startswith("$") for k in keys) and keys == sorted(keys):
         return {k: _encode(v, arrays, f"{where}[{k!r}]") for k, v in value.items()}
     items = [
         [_encode(k, arrays, f"{where} key"), _encode(v, arrays, f"{where}[{k!r}]")]

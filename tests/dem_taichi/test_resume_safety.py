@@ -152,6 +152,21 @@ def test_genuine_files_round_trip_bit_for_bit(saved):
     assert done[ISOTROPIC].branch == ISOTROPIC
 
 
+def test_the_order_of_a_dicts_keys_survives_the_sorted_json(tmp_path):
+    """The checkpoint sorts its JSON's keys; a dict in another order (a run log's labelled
+    states: C before B′) comes back in its own order, a sorted one as a plain object."""
+    from dem_taichi.io.checkpoint import save_checkpoint
+    from dem_taichi.protocol.resume_codec import decode, encode
+
+    value = {"sorted": {"a": 1, "b": [2, {"y": 0, "x": 1}]}, "states": {"C": 1.0, "B'": 2.0}}
+    tree, arrays = encode(value)
+    assert tree["sorted"]["a"] == 1 and "$dict" in tree["states"]
+    path = save_checkpoint(tmp_path / "f.npz", arrays, {"payload": tree})
+    back = decode(load_checkpoint(path)[1]["payload"], arrays)
+    assert back == value and list(back["states"]) == ["C", "B'"]
+    assert list(back["sorted"]["b"][1]) == ["y", "x"]
+
+
 def test_the_files_are_data_only_with_the_run_and_relative_paths(saved):
     arrays, meta = load_checkpoint(stage_a_file(saved.path))
     assert meta["run_id"] == saved.run_id and meta["scene_sha256"] == saved.scene_sha256
