@@ -7,7 +7,9 @@ Loads a checkpoint (a run's ``state_A.npz``, ``state_B.npz``, ``resume/*.npz``; 
 steps (after 100 to compile) at the strain rate ``--rate`` on both axes (0: the cell fixed), in
 five windows, and prints the mean and best steps per second and per CPU-second and the SHA-256
 (first 16 hex digits) of every array of the final state. Run it from two trees on the same
-file to compare them: the same hash means the same state bit for bit.
+file to compare them: the same hash means the same state bit for bit. ``--set
+section.key=value`` changes the stored scene (e.g. ``integration.execution=gather``) and
+``--threads N`` caps Taichi's CPU threads, to compare execution layouts on one state.
 
 Usage::
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import os
 import sys
 import time
 from pathlib import Path
@@ -30,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from dem_taichi.engine.control import AxisControl, CellControl  # noqa: E402
 from dem_taichi.engine.simulation import Simulation  # noqa: E402
 from dem_taichi.io.checkpoint import load_checkpoint  # noqa: E402
-from dem_taichi.scene.config import scene_from_toml  # noqa: E402
+from dem_taichi.scene.config import scene_from_toml, scene_with_overrides  # noqa: E402
 
 
 def state_hash(state: dict) -> str:
@@ -49,9 +52,13 @@ def main() -> None:
     parser.add_argument("checkpoint", type=Path)
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--rate", type=float, default=1e-4, help="strain rate of both axes")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
+    parser.add_argument("--threads", type=int, default=None, help="Taichi's CPU threads")
     args = parser.parse_args()
     state, meta = load_checkpoint(args.checkpoint)
-    scene = scene_from_toml(meta["scene_toml"])
+    scene = scene_with_overrides(scene_from_toml(meta["scene_toml"]), args.set)
+    if args.threads:  # read when the engine initialises Taichi
+        os.environ["DEM_TAICHI_CPU_THREADS"] = str(args.threads)
     sim = Simulation(scene)
     sim.set_state(state)
     rate = AxisControl("strain_rate", args.rate)
@@ -67,7 +74,8 @@ def main() -> None:
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     n = 5 * window
     print(
-        f"{args.checkpoint}: {sim.n_bodies} bodies, {n} steps: {n / wall:.0f} steps/s "
+        f"{args.checkpoint} {' '.join(args.set)}: {sim.n_bodies} bodies, {n} steps: "
+        f"{n / wall:.0f} steps/s "
         f"(best window {best:.0f}, {n / cpu:.0f} per CPU-s); state {state_hash(sim.get_state())}"
     )
 
