@@ -326,7 +326,7 @@ class ProtocolRunner:
         self.sim.set_state(point["state"])
         self._since_output = int(point["since_output"])
         self.stress_servo.memory = ServoMemory(dict(point["servo_times"]))
-        measures: Measures = point["measures"]  # type: ignore[assignment]
+        measures: Measures = point["measures"]
         return int(point["increment"]), measures
 
     # -- stage 0 ----------------------------------------------------------------------------

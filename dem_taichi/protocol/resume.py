@@ -310,6 +310,18 @@ def _load(path: Path, run: RunIdentity, kind: str, remedy: str, **expected: Any)
         raise _refusal(path, f"damaged: {error}", remedy) from None
 
 
+def _check_fields(values: Any, kinds: dict[str, type], path: Path, what: str, remedy: str):
+    """``values`` (a loaded payload) as a dict with exactly the fields ``kinds`` of those
+    types, its ``state`` a dict of arrays; else refused as damaged (``what`` names the file's
+    kind)."""
+    if not (isinstance(values, dict) and set(values) == set(kinds)):
+        raise _refusal(path, f"damaged: not the fields of {what}", remedy)
+    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
+    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
+        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", remedy)
+    return values
+
+
 # -- state A --------------------------------------------------------------------------------
 _STAGE_A_FIELDS = tuple(f.name for f in dataclasses.fields(StageA))
 
@@ -341,11 +353,7 @@ def load_stage_a(run: RunIdentity) -> StageA | None:
     from dem_taichi.protocol.records import RunLog
 
     kinds = {"history": list, "relaxed": list, "log": RunLog, "state": dict, "seconds": float}
-    if not (isinstance(values, dict) and set(values) == set(kinds)):
-        raise _refusal(path, "damaged: not the fields of state A", _REMEDY_A)
-    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
-    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
-        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_A)
+    values = _check_fields(values, kinds, path, "state A", _REMEDY_A)
     values["log"] = _log_absolute(values["log"], run.path, path)
     return StageA(**values)
 
@@ -377,11 +385,7 @@ def load_ageing(run: RunIdentity) -> AgeingPoint | None:
 
     kinds = {"history": list, "relaxed": list, "log": RunLog, "state": dict, "seconds": float,
              "progress": dict}  # fmt: skip
-    if not (isinstance(values, dict) and set(values) == set(kinds)):
-        raise _refusal(path, "damaged: not the fields of an ageing save", _REMEDY_AGEING)
-    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
-    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
-        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_AGEING)
+    values = _check_fields(values, kinds, path, "an ageing save", _REMEDY_AGEING)
     progress = values["progress"]
     if progress.get("phase") not in ("ageing", "aged") or not isinstance(
         progress.get("details"), dict
@@ -453,11 +457,7 @@ def load_branch_point(run: RunIdentity, index: int, branch: Branch) -> BranchPoi
     from dem_taichi.protocol.records import RunLog
 
     kinds = {"history": list, "log": RunLog, "state": dict, "progress": dict}
-    if not (isinstance(values, dict) and set(values) == set(kinds)):
-        raise _refusal(path, "damaged: not the fields of a branch point", _REMEDY_POINT)
-    wrong = [k for k, kind in kinds.items() if not isinstance(values[k], kind)]
-    if wrong or not all(isinstance(a, np.ndarray) for a in values["state"].values()):
-        raise _refusal(path, f"damaged: bad {', '.join(wrong) or 'state'}", _REMEDY_POINT)
+    values = _check_fields(values, kinds, path, "a branch point", _REMEDY_POINT)
     progress = values["progress"]
     if progress.get("stage") not in _POINT_STAGES[branch.kind]:
         raise _refusal(
