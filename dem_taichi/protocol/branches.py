@@ -182,15 +182,7 @@ def run_branch(
     runner.bars = False  # beside other branch processes on one terminal: lines, not bars
     runner.state_A = sim.get_state()
     log.states["A"] = state_A
-    _go_on_from(runner, branch, point)
-
-    def save(progress: dict) -> None:
-        point = BranchPoint(list(history), log, sim.get_state(), progress)
-        save_branch_point(run, index, branch, point)
-
-    runner.save_branch_points(save)
-    run_branch_on(runner, branch)
-    runner.save_branch_points(None)
+    _run_saving_points(runner, branch, run, index, point, history)
     del log.states["A"]
     outcome = BranchOutcome(branch=branch, history=list(history), log=log)
     save_branch(run, index, outcome)
@@ -198,15 +190,36 @@ def run_branch(
     return outcome
 
 
-def _go_on_from(runner: ProtocolRunner, branch: Branch, point: BranchPoint | None) -> None:
-    """Set ``runner`` to go on from a branch's saved ``point`` (nothing for None), saying so."""
-    if point is None:
-        return
-    runner.resume_branch = dict(point.progress, state=point.state)
-    runner._say(
-        f"[resume] {branch.label}: from {point.progress['stage']} after its "
-        f"{point.progress['increment']} path state(s)"
-    )
+def _run_saving_points(
+    runner: ProtocolRunner,
+    branch: Branch,
+    run: RunIdentity,
+    index: int,
+    point: BranchPoint | None,
+    records: list[dict],
+) -> None:
+    """Run ``branch`` on ``runner`` (:func:`run_branch_on`), going on from its saved ``point``
+    (None: from A) and saving points as it runs, as the ``index``-th branch of ``run``: with
+    ``records`` (the list the branch's history records are appended to) and the runner's log,
+    the branch's own."""
+    if point is not None:
+        runner.resume_branch = dict(point.progress, state=point.state)
+        runner._say(
+            f"[resume] {branch.label}: from {point.progress['stage']} after its "
+            f"{point.progress['increment']} path state(s)"
+        )
+
+    def save(progress: dict) -> None:
+        state = runner.sim.get_state()
+        point = BranchPoint(list(records), runner.log, state, progress)
+        save_branch_point(run, index, branch, point)
+
+    runner.save_branch_points(save)
+    try:
+        run_branch_on(runner, branch)
+    finally:
+        runner.save_branch_points(None)
+        runner.resume_branch = None
 
 
 def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: RunIdentity) -> None:
@@ -222,8 +235,8 @@ def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: Ru
     log.states["A"] = main_log.states["A"]
     recording = RecordingWriter(history) if history is not None else None
     if point is not None:  # the branch's records so far, as a run never stopped wrote them
-        for record in point.history:
-            if recording is not None:
+        if recording is not None:
+            for record in point.history:
                 recording.append(record)
         if runner.relaxed_writer is not None:
             for state in log.path_states:
@@ -231,26 +244,15 @@ def run_branch_saved(runner: ProtocolRunner, branch: Branch, index: int, run: Ru
     runner.log, runner.history = log, recording
     if recorder is not None:
         recorder.log = log
-    _go_on_from(runner, branch, point)
-
-    def save(progress: dict) -> None:
-        records = recording.records if recording is not None else []
-        save_branch_point(run, index, branch, BranchPoint(
-            list(records), log, runner.sim.get_state(), progress
-        ))  # fmt: skip
-
-    runner.save_branch_points(save)
+    records = recording.records if recording is not None else []
     try:
-        run_branch_on(runner, branch)
+        _run_saving_points(runner, branch, run, index, point, records)
     finally:
-        runner.save_branch_points(None)
-        runner.resume_branch = None
         runner.log, runner.history = main_log, history
         if recorder is not None:
             recorder.log = main_log
     del log.states["A"]
     main_log.merge(log)
-    records = recording.records if recording is not None else []
     save_branch(run, index, BranchOutcome(branch=branch, history=records, log=log))
     remove_branch_point(run, index)
 
