@@ -53,53 +53,30 @@ def _tag(ds: xr.Dataset, name: str) -> str:
     return {"fitted": "fitted", "input": "driven by the DEM path"}.get(role, "out of sample")
 
 
-def _stress_paths(ax, series, runs, probes, model_probes):
+def _dem_points_and_tiv_lines(ax, series, runs, x: str, y: str, role_of: str = "") -> None:
+    """Each path's DEM ``y`` against ``x`` as open circles and, where the model ran it, the TIV
+    run's as a line of the same colour, its legend saying whether the run's ``role_of`` (default
+    ``y``) was fitted."""
     for path, ds in series.items():
         c = path_colour(path)
-        ax.plot(
-            ds["mean_stress"],
-            ds["deviatoric_stress"],
-            "o",
-            color=c,
-            ms=4,
-            mfc="none",
-            label=f"DEM {path_name(path)}",
-        )
+        ax.plot(ds[x], ds[y], "o", color=c, ms=4, mfc="none", label=f"DEM {path_name(path)}")
         if path in runs:
             r = runs[path]
-            ax.plot(
-                r["mean_stress"],
-                r["deviatoric_stress"],
-                "-",
-                color=c,
-                label=f"TIV ({_tag(r, 'stress_ratio')})",
-            )
+            ax.plot(r[x], r[y], "-", color=c, label=f"TIV ({_tag(r, role_of or y)})")
+
+
+def _stress_paths(ax, series, runs, probes, model_probes):
+    # q's legend gives the role of the run's stress ratio η = q/p
+    _dem_points_and_tiv_lines(
+        ax, series, runs, "mean_stress", "deviatoric_stress", role_of="stress_ratio"
+    )
     ax.set_xlabel("p (kPa)")
     ax.set_ylabel("q (kPa)")
     ax.set_title("stress paths")
 
 
 def _compressibility(ax, series, runs, probes, model_probes):
-    for path, ds in series.items():
-        c = path_colour(path)
-        ax.plot(
-            ds["mean_stress"],
-            ds["specific_volume"],
-            "o",
-            color=c,
-            ms=4,
-            mfc="none",
-            label=f"DEM {path_name(path)}",
-        )
-        if path in runs:
-            r = runs[path]
-            ax.plot(
-                r["mean_stress"],
-                r["specific_volume"],
-                "-",
-                color=c,
-                label=f"TIV ({_tag(r, 'specific_volume')})",
-            )
+    _dem_points_and_tiv_lines(ax, series, runs, "mean_stress", "specific_volume")
     ax.set_xscale("log")
     ax.set_xlabel("p (kPa)")
     ax.set_ylabel("v")
@@ -107,20 +84,7 @@ def _compressibility(ax, series, runs, probes, model_probes):
 
 
 def _fabric(ax, series, runs, probes, model_probes):
-    for path, ds in series.items():
-        c = path_colour(path)
-        ax.plot(
-            ds["mean_stress"],
-            ds["fabric"],
-            "o",
-            color=c,
-            ms=4,
-            mfc="none",
-            label=f"DEM {path_name(path)}",
-        )
-        if path in runs:
-            r = runs[path]
-            ax.plot(r["mean_stress"], r["fabric"], "-", color=c, label=f"TIV ({_tag(r, 'fabric')})")
+    _dem_points_and_tiv_lines(ax, series, runs, "mean_stress", "fabric")
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.set_xlabel("p (kPa)")
     ax.set_ylabel("β = −F (β_yy − β_xx)")
