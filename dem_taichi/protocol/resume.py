@@ -409,7 +409,9 @@ def save_branch(run: RunIdentity, index: int, outcome: BranchOutcome) -> Path:
 def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, BranchOutcome]:
     """The saved outcomes of ``branches`` of ``run``, for those whose file exists (the k-th
     branch's is ``branch_<k>.npz``); refuses (:class:`ResumeFileError`) a file that is
-    damaged, not this run's, or of another branch (its label is not the branch's)."""
+    damaged, not this run's, or of another branch (its label is not the branch's). A point of
+    a branch whose outcome is saved (left when a run stopped between writing the outcome and
+    deleting the point) is spent, and deleted."""
     from dem_taichi.protocol.records import BranchOutcome, RunLog
 
     done = {}
@@ -428,6 +430,7 @@ def load_branches(run: RunIdentity, branches: Sequence[Branch]) -> dict[Branch, 
                 path, f"damaged: not the outcome of branch {branch.label!r}", _REMEDY_BRANCH
             )
         done[branch] = dataclasses.replace(outcome, log=_log_absolute(outcome.log, run.path, path))
+        remove_branch_point(run, index)
     return done
 
 

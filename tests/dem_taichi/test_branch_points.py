@@ -127,3 +127,32 @@ def test_a_point_of_another_run_or_branch_or_damaged_is_refused(stopped_at_every
     branch_point_file(tmp_path, 1).write_bytes(b"not a checkpoint")
     with pytest.raises(ResumeFileError, match="damaged or not a resume file"):
         load_branch_point(run, 1, k0)
+
+
+def test_a_point_left_beside_its_saved_outcome_is_spent(tmp_path):
+    """A run stopped between saving a branch's outcome and deleting its point leaves both; the
+    next load of the outcomes deletes the point (it is never gone on from), and keeps the point
+    of a branch without an outcome."""
+    from dem_taichi.protocol.records import Branch, BranchOutcome, RunLog
+    from dem_taichi.protocol.resume import (
+        BranchPoint,
+        RunIdentity,
+        branch_point_file,
+        load_branches,
+        save_branch,
+        save_branch_point,
+    )
+
+    run = RunIdentity(tmp_path, "run-1", "0" * 64)
+    (tmp_path / "resume").mkdir()
+    branches = [Branch("isotropic"), Branch("k0")]
+    progress = {"stage": "A_to_B", "increment": 2, "measures": {"mean_stress": 1.0},
+                "since_output": 0, "servo_times": {}}  # fmt: skip
+    save_branch_point(run, 0, branches[0], BranchPoint([], RunLog(), {}, progress))
+    save_branch(run, 0, BranchOutcome(branch=branches[0], history=[], log=RunLog()))
+    k0_progress = dict(progress, stage="A_to_C", servo_times={"A_to_C": 2.0})
+    save_branch_point(run, 1, branches[1], BranchPoint([], RunLog(), {}, k0_progress))
+    done = load_branches(run, branches)
+    assert list(done) == [branches[0]]
+    assert not branch_point_file(tmp_path, 0).exists()
+    assert branch_point_file(tmp_path, 1).exists()
