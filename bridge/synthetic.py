@@ -151,10 +151,10 @@ def synthetic_results(
 NOISE_KEYS = ("stress", "specific_volume", "fabric", "moduli")
 
 #: The DEM's scatter, as standard deviations in the units of :func:`add_noise` (stress scale 1,
-#: fabric scale 1): measured between two replicas of the paper scene (``/work/runs/paper`` and
-#: ``paper_s4``, seeds differ) at the same relaxed states, σ = RMS(difference)/√2: fabric
-#: deviator 0.014–0.017 (isotropic, K0), ln v 0.009–0.013, p 1.3 % (isotropic; the servo holds
-#: the targets), linear-response moduli 4–16 % (E_oed; the cross term up to 30 %).
+#: fabric scale 1): measured between two replicas of the paper scene (``protocol paper``, its
+#: seed 3, and with ``--set scene.seed=4``) at the same relaxed states, σ = RMS(difference)/√2:
+#: fabric deviator 0.014–0.017 (isotropic, K0), ln v 0.009–0.013, p 1.3 % (isotropic; the servo
+#: holds the targets), linear-response moduli 4–16 % (E_oed; the cross term up to 30 %).
 DEM_NOISE: dict[str, float] = {"stress": 0.013, "specific_volume": 0.01, "fabric": 0.015,
                                "moduli": 0.08}  # fmt: skip
 
