@@ -9,7 +9,8 @@ Usage::
 
 STATE_A.npz is a checkpoint of the engine at A, such as the ``<out>.state_A.npz`` that
 ``benchmarks/paired_paths.py`` writes beside its JSON; its scene (in the checkpoint) gives the
-protocol and probing settings, ``--set`` replaces ``[protocol]`` keys. The branch runs as in a
+protocol and probing settings, and ``--set section.key=value`` changes them (validated as a
+scene file is; the engine and its state are the checkpoint's). The branch runs as in a
 protocol run (probes included) and, before every servo update, one row is written: the step,
 what limits the rates (``cap``, ``cap_ufr``, ``approach``: the work ledger's labels), the secant
 ratio s, the modal gain factors, the residual t − Wσ, the wanted rates, the rate cap, σ_xx, σ_yy
@@ -30,7 +31,6 @@ elastic prediction spans ``--window`` × |t| (a tangent rather than a secant sin
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from pathlib import Path
 
@@ -80,24 +80,14 @@ def trace(args: argparse.Namespace) -> None:
     from dem_taichi.protocol.paths import ProtocolRunner
     from dem_taichi.protocol.probing import ProbeRecorder
     from dem_taichi.protocol.records import Branch, ProtocolError, RelaxedState, RunLog
-    from dem_taichi.scene.config import scene_from_toml
+    from dem_taichi.scene.config import scene_from_toml, scene_with_overrides
     from dem_taichi.scene.probing_sections import probing_settings
     from dem_taichi.scene.protocol_sections import protocol_settings
 
     sim = Simulation.from_checkpoint(args.state)
     scene = scene_from_toml(checkpoint_meta(args.state)["scene_toml"])
+    scene = scene_with_overrides(scene, args.set)  # validated as a scene file is
     config, probing = protocol_settings(scene), probing_settings(scene)
-    changes = {}
-    for item in args.set:
-        key, value = item.removeprefix("protocol.").split("=", 1)
-        old = getattr(config, key)
-        if isinstance(old, bool):
-            changes[key] = value.lower() == "true"
-        elif isinstance(old, int | float):
-            changes[key] = type(old)(value)
-        else:
-            changes[key] = float(value) if old is None else value
-    config = dataclasses.replace(config, **changes)
     log = RunLog()
     recorder = ProbeRecorder(probing, config, log)
     runner = ProtocolRunner(sim, config, probing, None, None, recorder, True, log=log)
@@ -197,7 +187,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("state", nargs="?", type=Path, help="checkpoint of the engine at A")
     parser.add_argument("--branch", default="isotropic")
     parser.add_argument("--out", type=Path)
-    parser.add_argument("--set", action="append", default=[], metavar="protocol.KEY=VALUE")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
     parser.add_argument("--prototype", choices=("flip", "window"))
     parser.add_argument("--window", type=float, default=0.01)
     parser.add_argument("--phases", type=Path, metavar="TRACE.tsv")

@@ -96,6 +96,15 @@ def test_worker_processes_go_on_from_a_point(stopped_at_every_point):
     assert not (copy / "resume" / "branch_1_point.npz").exists()
 
 
+def _empty_run(folder):
+    """A run identity over ``folder`` with an empty ``resume/`` (points and outcomes saved by
+    hand)."""
+    from dem_taichi.protocol.resume import RunIdentity
+
+    (folder / "resume").mkdir()
+    return RunIdentity(folder, "run-1", "0" * 64)
+
+
 def test_a_point_of_another_run_or_branch_or_damaged_is_refused(stopped_at_every_point, tmp_path):
     from dem_taichi.protocol.records import Branch, RunLog
     from dem_taichi.protocol.resume import (
@@ -107,8 +116,7 @@ def test_a_point_of_another_run_or_branch_or_damaged_is_refused(stopped_at_every
         save_branch_point,
     )
 
-    run = RunIdentity(tmp_path, "run-1", "0" * 64)
-    (tmp_path / "resume").mkdir()
+    run = _empty_run(tmp_path)
     k0 = Branch("k0")
     progress = {"stage": "C_to_B", "increment": 1, "measures": {"mean_stress": 1.0},
                 "since_output": 3, "servo_times": {"C_to_B": 2.0}}  # fmt: skip
@@ -136,15 +144,13 @@ def test_a_point_left_beside_its_saved_outcome_is_spent(tmp_path):
     from dem_taichi.protocol.records import Branch, BranchOutcome, RunLog
     from dem_taichi.protocol.resume import (
         BranchPoint,
-        RunIdentity,
         branch_point_file,
         load_branches,
         save_branch,
         save_branch_point,
     )
 
-    run = RunIdentity(tmp_path, "run-1", "0" * 64)
-    (tmp_path / "resume").mkdir()
+    run = _empty_run(tmp_path)
     branches = [Branch("isotropic"), Branch("k0")]
     progress = {"stage": "A_to_B", "increment": 2, "measures": {"mean_stress": 1.0},
                 "since_output": 0, "servo_times": {}}  # fmt: skip
