@@ -1,0 +1,187 @@
+"""Where the compressibility goes along the isotropic path (issue 19): λ* decade by decade.
+
+Usage::
+
+    python benchmarks/local_compressibility.py RUN [RUN ...] \
+        [--out benchmarks/results/local_compressibility]
+
+Each RUN is a finished protocol run folder named ``<cell>_s<seed>`` (runs of one cell are
+replicas). The study's normal compression line is straight in ln v – ln p (λ* = 0.25 over the
+whole window); the DEM gel's is not, and the windowed λ* (one least-squares slope over 1–200 kPa)
+hides where the gap sits. For every run, on the mapped stresses (the run's measured stress scale,
+E_v/p = 125 at 100 kPa; the scene's where none is measured):
+
+- p_A (kPa) and v_A;
+- the segment slopes λ_seg = −ln(v(p₂)/v(p₁))/ln(p₂/p₁) between the edges 1, 3, 10, 30, 100
+  and 200 kPa, v interpolated in (ln p, ln v) along A→B (the segment that holds p_A starts
+  there; NaN below p_A and past the path's end);
+- λ* fitted (least squares, :func:`dem_taichi.analysis.mapped_window.windowed_compressibility`)
+  on 1–200, 3–200 and 10–200 kPa.
+
+Per cell: mean ± 95 % (Student t) over its runs. Writes ``<out>.md`` (the tables), ``<out>.csv``
+(per run) and ``<out>.png`` (the local −d ln v/d ln p between consecutive states against p, every
+run, with the study's 0.25).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from dem_taichi.analysis.findings import mean_interval, path_arrays, run_findings
+from dem_taichi.analysis.mapped_window import (
+    local_compressibility,
+    specific_volume_at,
+    windowed_compressibility,
+)
+from dem_taichi.io import open_history
+
+#: Segment edges (kPa) of the decade-by-decade slopes.
+EDGES_KPA = (1.0, 3.0, 10.0, 30.0, 100.0, 200.0)
+#: Lower ends (kPa) of the windows fitted up to 200 kPa.
+WINDOW_STARTS_KPA = (1.0, 3.0, 10.0)
+#: The study's λ* (Table 1).
+STUDY_LAMBDA = 0.25
+
+
+def isotropic_path_kpa(folder: Path) -> tuple[np.ndarray, np.ndarray, float]:
+    """(p in kPa, v) of state A and the relaxed states of A→B, and the stress scale used
+    (kPa per DEM unit: the run's measured one where it has one, else its scene's)."""
+    import json
+
+    found = run_findings(folder)
+    scale = float(found["stress_scale_kpa_used"])
+    summary = json.loads((folder / "summary.json").read_text())
+    path = path_arrays(summary, open_history(folder / "relaxed_states.nc"))
+    p = path.from_a("A_to_B", "mean_stress") * scale
+    v = path.from_a("A_to_B", "specific_volume")
+    return p, v, scale
+
+
+def segment_slopes(p_kpa, v, edges=EDGES_KPA) -> list[float]:
+    """λ_seg between consecutive ``edges`` (kPa) along the path (p_kpa, v): minus the slope of
+    ln v on ln p between v interpolated at the two edges; the segment that holds p_A (the path's
+    lowest p) starts there; NaN where an end is not on the path (below p_A, past its end)."""
+    p_kpa, v = np.asarray(p_kpa, dtype=float), np.asarray(v, dtype=float)
+    order = np.argsort(p_kpa)
+    p_sorted, v_sorted = p_kpa[order], v[order]
+    slopes = []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        start = float(p_sorted[0]) if lo < p_sorted[0] < hi else lo
+        v_lo = specific_volume_at(p_sorted, v_sorted, start)
+        v_hi = specific_volume_at(p_sorted, v_sorted, hi)
+        slopes.append(-math.log(v_hi / v_lo) / math.log(hi / start))
+    return slopes
+
+
+def run_row(folder: Path) -> dict:
+    """The λ profile of one run folder (``<cell>_s<seed>``), with the arrays for the figure."""
+    named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
+    if named is None:
+        raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
+    p, v, scale = isotropic_path_kpa(folder)
+    row: dict = {"cell": named.group(1), "seed": int(named.group(2)), "scale": scale}
+    row["p_A_kpa"], row["v_A"] = float(p[0]), float(v[0])
+    for (lo, hi), slope in zip(_segments(), segment_slopes(p, v), strict=True):
+        row[f"seg_{lo:g}_{hi:g}"] = slope
+    for lo in WINDOW_STARTS_KPA:
+        row[f"fit_{lo:g}_200"] = windowed_compressibility(p, v, (lo, 200.0)).slope
+    row["_p"], row["_v"] = p, v
+    return row
+
+
+def _segments() -> list[tuple[float, float]]:
+    return list(zip(EDGES_KPA[:-1], EDGES_KPA[1:], strict=True))
+
+
+def _columns() -> list[tuple[str, str]]:
+    cols = [("p_A_kpa", "p_A (kPa)"), ("v_A", "v_A")]
+    cols += [(f"seg_{lo:g}_{hi:g}", f"λ {lo:g}–{hi:g}") for lo, hi in _segments()]
+    cols += [(f"fit_{lo:g}_200", f"λ* fit {lo:g}–200") for lo in WINDOW_STARTS_KPA]
+    return cols
+
+
+def _cell_rows(rows: list[dict]) -> list[dict]:
+    cells: dict[str, list[dict]] = {}
+    for row in rows:
+        cells.setdefault(row["cell"], []).append(row)
+    out = []
+    for cell, members in cells.items():
+        entry: dict = {"cell": cell, "seeds": ",".join(str(r["seed"]) for r in members)}
+        for key, _ in _columns():
+            entry[key] = mean_interval([r[key] for r in members])
+        out.append(entry)
+    return out
+
+
+def _fmt(mean: float, half: float, n: int) -> str:
+    if n == 0 or not math.isfinite(mean):
+        return "—"
+    return f"{mean:.3g}" if not math.isfinite(half) else f"{mean:.3g} ± {half:.2g}"
+
+
+def markdown(rows: list[dict]) -> str:
+    """The per-cell table (mean ± 95 %) and the per-run table."""
+    cols = _columns()
+    lines = ["| cell (seeds) | " + " | ".join(label for _, label in cols) + " |"]
+    lines.append("|---" * (len(cols) + 1) + "|")
+    for entry in _cell_rows(rows):
+        cells = [_fmt(*entry[key]) for key, _ in cols]
+        lines.append(f"| {entry['cell']} ({entry['seeds']}) | " + " | ".join(cells) + " |")
+    lines += ["", "| run | " + " | ".join(label for _, label in cols) + " |"]
+    lines.append("|---" * (len(cols) + 1) + "|")
+    for row in rows:
+        cells = [f"{row[key]:.3g}" if math.isfinite(row[key]) else "—" for key, _ in cols]
+        lines.append(f"| {row['cell']}_s{row['seed']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def figure(rows: list[dict], path: Path) -> None:
+    """Local −d ln v/d ln p against p (kPa) for every run, one colour per cell."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), constrained_layout=True)
+    colours: dict[str, str] = {}
+    for row in rows:
+        label = row["cell"] if row["cell"] not in colours else None
+        colour = colours.setdefault(row["cell"], f"C{len(colours)}")
+        p_mid, local = local_compressibility(row["_p"], row["_v"])
+        ax.plot(p_mid, local, "o-", color=colour, alpha=0.8, ms=3, label=label)
+    ax.axhline(STUDY_LAMBDA, color="k", ls="--", lw=1, label="the study (λ* = 0.25)")
+    ax.axvspan(1.0, 200.0, color="0.92", zorder=0)
+    ax.set_xscale("log")
+    ax.set_xlabel("p (kPa, the run's measured stress scale)")
+    ax.set_ylabel("local λ = −d ln v / d ln p")
+    ax.set_ylim(bottom=0.0)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="finished run folders <cell>_s<seed>")
+    parser.add_argument("--out", type=Path, default=Path("local_compressibility"))
+    args = parser.parse_args(argv)
+    rows = [run_row(folder) for folder in args.runs]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.with_suffix(".md").write_text(markdown(rows))
+    keys = ["cell", "seed", "scale"] + [key for key, _ in _columns()]
+    with args.out.with_suffix(".csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=keys, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    figure(rows, args.out.with_suffix(".png"))
+    print(markdown(rows))
+
+
+if __name__ == "__main__":
+    main()
