@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import re
 from pathlib import Path
@@ -52,8 +53,6 @@ STUDY_LAMBDA = 0.25
 def isotropic_path_kpa(folder: Path) -> tuple[np.ndarray, np.ndarray, float]:
     """(p in kPa, v) of state A and the relaxed states of A→B, and the stress scale used
     (kPa per DEM unit: the run's measured one where it has one, else its scene's)."""
-    import json
-
     found = run_findings(folder)
     scale = float(found["stress_scale_kpa_used"])
     summary = json.loads((folder / "summary.json").read_text())
