@@ -20,3 +20,8 @@ done
 for seed in 11 2 12; do
   run_protocol MU025_s$seed study_demo --workers 1 --set scene.seed=$seed --set contact.mu=0.25
 done
+# cell MU025K (added after MU025's results): MU025 with its stiffness refitted, k_n = 7e4 x 125/199
+for seed in 11 2 12; do
+  run_protocol MU025K_s$seed study_demo --workers 1 --set scene.seed=$seed --set contact.mu=0.25 \
+    --set contact.k_n=4.4e4 --set contact.k_t=8.8e3 --set contact.rolling_stiffness=1.76e4
+done
