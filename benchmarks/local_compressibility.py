@@ -34,13 +34,18 @@ from pathlib import Path
 
 import numpy as np
 
-from dem_taichi.analysis.findings import mean_interval, path_arrays, run_findings
+from dem_taichi.analysis.findings import (
+    mapped_window_findings,
+    mean_interval,
+    path_arrays,
+    probe_arrays,
+)
 from dem_taichi.analysis.mapped_window import (
     local_compressibility,
     specific_volume_at,
     windowed_compressibility,
 )
-from dem_taichi.io import open_history
+from dem_taichi.io import open_history, open_probes
 
 #: Segment edges (kPa) of the decade-by-decade slopes.
 EDGES_KPA = (1.0, 3.0, 10.0, 30.0, 100.0, 200.0)
@@ -52,28 +57,30 @@ STUDY_LAMBDA = 0.25
 
 def isotropic_path_kpa(folder: Path) -> tuple[np.ndarray, np.ndarray, float]:
     """(p in kPa, v) of state A and the relaxed states of A→B, and the stress scale used
-    (kPa per DEM unit: the run's measured one where it has one, else its scene's)."""
-    found = run_findings(folder)
-    scale = float(found["stress_scale_kpa_used"])
+    (kPa per DEM unit: the run's measured one where it has one, else its scene's), read as
+    :func:`dem_taichi.analysis.findings.run_findings` reads them."""
     summary = json.loads((folder / "summary.json").read_text())
-    path = path_arrays(summary, open_history(folder / "relaxed_states.nc"))
-    p = path.from_a("A_to_B", "mean_stress") * scale
+    relaxed = open_history(folder / "relaxed_states.nc")
+    path = path_arrays(summary, relaxed)
+    p = path.from_a("A_to_B", "mean_stress")
     v = path.from_a("A_to_B", "specific_volume")
-    return p, v, scale
+    probes_file = folder / "probes.nc"
+    probes = probe_arrays(open_probes(probes_file) if probes_file.exists() else None)
+    found = mapped_window_findings(summary, relaxed.attrs, probes, p, v)
+    scale = float(found["stress_scale_kpa_used"])
+    return p * scale, v, scale
 
 
 def segment_slopes(p_kpa, v, edges=EDGES_KPA) -> list[float]:
     """λ_seg between consecutive ``edges`` (kPa) along the path (p_kpa, v): minus the slope of
     ln v on ln p between v interpolated at the two edges; the segment that holds p_A (the path's
     lowest p) starts there; NaN where an end is not on the path (below p_A, past its end)."""
-    p_kpa, v = np.asarray(p_kpa, dtype=float), np.asarray(v, dtype=float)
-    order = np.argsort(p_kpa)
-    p_sorted, v_sorted = p_kpa[order], v[order]
+    p_a = float(np.nanmin(p_kpa))
     slopes = []
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-        start = float(p_sorted[0]) if lo < p_sorted[0] < hi else lo
-        v_lo = specific_volume_at(p_sorted, v_sorted, start)
-        v_hi = specific_volume_at(p_sorted, v_sorted, hi)
+        start = p_a if lo < p_a < hi else lo
+        v_lo = specific_volume_at(p_kpa, v, start)  # orders the path by p itself
+        v_hi = specific_volume_at(p_kpa, v, hi)
         slopes.append(-math.log(v_hi / v_lo) / math.log(hi / start))
     return slopes
 
