@@ -16,14 +16,12 @@
 #     --out benchmarks/results/study_clay_floor_local
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-ISO=(--set protocol.run_k0=false --set protocol.run_unloading=false --set 'probing.states=A, B')
-NO_ROLLING=$OUT/study_demo_no_rolling.toml
-grep -v '^rolling_' "$(dirname "${BASH_SOURCE[0]}")/../dem_taichi/scenes/study_demo.toml" > "$NO_ROLLING"
+NO_ROLLING=$(no_rolling_scene)
 for seed in 11 2 12; do
-  run_protocol NA_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISO[@]}" \
+  run_protocol NA_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set long_range.enabled=false
-  run_protocol NAlow_s$seed "$NO_ROLLING" --workers 1 --set scene.seed=$seed "${ISO[@]}" \
+  run_protocol NAlow_s$seed "$NO_ROLLING" --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set long_range.enabled=false --set contact.mu=0.1
-  run_protocol MU01_s$seed "$NO_ROLLING" --workers 1 --set scene.seed=$seed "${ISO[@]}" \
+  run_protocol MU01_s$seed "$NO_ROLLING" --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set contact.mu=0.1
 done

@@ -12,10 +12,9 @@
 #   python benchmarks/local_compressibility.py OUT/*_s* --out benchmarks/results/study_clay_pstar_local
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-ISO=(--set protocol.run_k0=false --set protocol.run_unloading=false --set 'probing.states=A, B')
 for seed in 11 2 12; do
-  run_protocol SP05iso_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISO[@]}"
-  run_protocol K280_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISO[@]}" \
+  run_protocol SP05iso_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}"
+  run_protocol K280_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set contact.k_n=2.8e5 --set contact.k_t=5.6e4 --set contact.rolling_stiffness=1.12e5 \
     --set protocol.target_mean_stress=400 --set protocol.isotropic_end_stress=2000 \
     --set protocol.stress_scale_kpa=0.25 --set protocol.path_increments=8

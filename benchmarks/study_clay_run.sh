@@ -6,9 +6,12 @@
 # unless NAME has finished ($OUT/NAME/summary.json exists) or does not match $ONLY (when set);
 # its output goes to $OUT/NAME.log, and "NAME rc R wall S s" is appended to $OUT/summary.txt;
 # bonded_cell CELL [ARGS...], the isotropic runs CELL_s11, CELL_s2, CELL_s12 of the bonded study
-# cell KB300 (study_clay_bonded_stiffness.sh) with extra ARGS; and k0_from_run NAME, the K0 path
+# cell KB300 (study_clay_bonded_stiffness.sh) with extra ARGS; k0_from_run NAME, the K0 path
 # and unloading of the finished run NAME from its saved A (paired_paths.py --from-run, into
-# $OUT/NAME_k0.json), unless done.
+# $OUT/NAME_k0.json), unless done; ISOTROPIC_ONLY, the overrides of a run of the isotropic path
+# alone (probes at A and B besides every increment); and no_rolling_scene, which writes the
+# built-in `study_demo` without its rolling keys (no rolling resistance: --set cannot remove a
+# key) to $OUT/study_demo_no_rolling.toml and prints that path.
 # The scripts that run the `study` or `study_demo` scenes reproduce their pages' tables from a
 # clone of the commit the page names. Since 2026-12-03 both scenes age a gas of area fraction 0.05
 # for 2000 time units (cell SP05, study_clay_looser.md); runs of the earlier material (0.10, 1000)
@@ -30,14 +33,20 @@ run_protocol() {
     >> "$OUT/$name.log" 2>&1
   echo "$name rc $? wall $(( $(date +%s) - start )) s${resume:+ (resumed)}" >> "$OUT/summary.txt"
 }
+ISOTROPIC_ONLY=(--set protocol.run_k0=false --set protocol.run_unloading=false
+  --set 'probing.states=A, B')
+no_rolling_scene() {
+  local scene=$OUT/study_demo_no_rolling.toml
+  grep -v '^rolling_' "$(dirname "${BASH_SOURCE[0]}")/../dem_taichi/scenes/study_demo.toml" > "$scene"
+  echo "$scene"
+}
 bonded_cell() {
   local cell=$1 seed; shift
   for seed in 11 2 12; do
     run_protocol ${cell}_s$seed study_demo --workers 1 --set scene.seed=$seed \
       --set particles.rod_model=bonded --set protocol.aggregation_thermostat=rods \
       --set contact.k_n=3.0e5 --set contact.k_t=6.0e4 --set contact.rolling_stiffness=1.2e5 \
-      --set protocol.run_k0=false --set protocol.run_unloading=false \
-      --set protocol.save_path_states=true --set 'probing.states=A, B' "$@"
+      "${ISOTROPIC_ONLY[@]}" --set protocol.save_path_states=true "$@"
   done
 }
 k0_from_run() {

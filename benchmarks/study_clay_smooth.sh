@@ -10,8 +10,7 @@
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_smooth_cells
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
-NO_ROLLING=$OUT/study_demo_no_rolling.toml
-grep -v '^rolling_' "$(dirname "${BASH_SOURCE[0]}")/../dem_taichi/scenes/study_demo.toml" > "$NO_ROLLING"
+NO_ROLLING=$(no_rolling_scene)
 for seed in 11 2 12; do
   run_protocol MU01K_s$seed "$NO_ROLLING" --workers 1 --set scene.seed=$seed \
     --set contact.mu=0.1 --set contact.k_n=3.7e4 --set contact.k_t=7.4e3
