@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/local_compressibility.py RUN [RUN ...] \
-        [--out benchmarks/results/local_compressibility]
+        [--out benchmarks/results/local_compressibility] [--elastic]
 
 Each RUN is a finished protocol run folder named ``<cell>_s<seed>`` (runs of one cell are
 replicas). The study's normal compression line is straight in ln v – ln p (λ* = 0.25 over the
@@ -16,7 +16,11 @@ E_v/p = 125 at 100 kPa; the scene's where none is measured):
   and 200 kPa, v interpolated in (ln p, ln v) along A→B (the segment that holds p_A starts
   there; NaN below p_A and past the path's end);
 - λ* fitted (least squares, :func:`dem_taichi.analysis.mapped_window.windowed_compressibility`)
-  on 1–200, 3–200 and 10–200 kPa.
+  on 1–200, 3–200 and 10–200 kPa;
+- with ``--elastic``, the elastic share of each segment: κ = p/K, the slope of ln v on ln p that
+  the probes' 2D bulk modulus K = dp/dε_vol (``bulk_modulus_linear`` of ``probes.nc``, at A and
+  every relaxed state of A→B) would give alone, interpolated in ln p at the segment's geometric
+  middle (NaN outside the probed states). κ ≪ λ_seg means the segment's compression is plastic.
 
 Per cell: mean ± 95 % (Student t) over its runs. Writes ``<out>.md`` (the tables), ``<out>.csv``
 (per run) and ``<out>.png`` (the local −d ln v/d ln p between consecutive states against p, every
@@ -85,8 +89,40 @@ def segment_slopes(p_kpa, v, edges=EDGES_KPA) -> list[float]:
     return slopes
 
 
-def run_row(folder: Path) -> dict:
-    """The λ profile of one run folder (``<cell>_s<seed>``), with the arrays for the figure."""
+def isotropic_bulk_compliance(folder: Path, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """(p in kPa, κ = p/K) at the probes of state A and of A→B's relaxed states (``probes.nc``;
+    empty arrays without one), ordered by p; ``scale`` in kPa per DEM unit."""
+    probes_file = folder / "probes.nc"
+    if not probes_file.exists():
+        return np.empty(0), np.empty(0)
+    probes = open_probes(probes_file)
+    labels = probes["state_label"].values.astype(str)
+    paths = probes["path"].values.astype(str)
+    keep = (labels == "A") | (paths == "A_to_B")
+    p = np.asarray(probes["mean_stress"].values, dtype=float)[keep]
+    bulk = np.asarray(probes["bulk_modulus_linear"].values, dtype=float)[keep]
+    order = np.argsort(p)
+    return p[order] * scale, p[order] / bulk[order]
+
+
+def segment_elastic_slopes(p_kpa, kappa, edges=EDGES_KPA) -> list[float]:
+    """κ = p/K at the geometric middle of each segment between consecutive ``edges`` (kPa),
+    interpolated linearly in ln p between the probed states (p_kpa increasing); NaN where the
+    middle is outside them."""
+    p_kpa, kappa = np.asarray(p_kpa, dtype=float), np.asarray(kappa, dtype=float)
+    slopes = []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        middle = math.sqrt(lo * hi)
+        inside = p_kpa.size and p_kpa[0] <= middle <= p_kpa[-1]
+        slopes.append(
+            float(np.interp(math.log(middle), np.log(p_kpa), kappa)) if inside else math.nan
+        )
+    return slopes
+
+
+def run_row(folder: Path, elastic: bool = False) -> dict:
+    """The λ profile of one run folder (``<cell>_s<seed>``), with the arrays for the figure;
+    with ``elastic``, the segments' κ too (:func:`segment_elastic_slopes`)."""
     named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
     if named is None:
         raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
@@ -97,6 +133,10 @@ def run_row(folder: Path) -> dict:
         row[f"seg_{lo:g}_{hi:g}"] = slope
     for lo in WINDOW_STARTS_KPA:
         row[f"fit_{lo:g}_200"] = windowed_compressibility(p, v, (lo, 200.0)).slope
+    if elastic:
+        kappas = segment_elastic_slopes(*isotropic_bulk_compliance(folder, scale))
+        for (lo, hi), kappa in zip(_segments(), kappas, strict=True):
+            row[f"kappa_{lo:g}_{hi:g}"] = kappa
     row["_p"], row["_v"] = p, v
     return row
 
@@ -105,11 +145,17 @@ def _segments() -> list[tuple[float, float]]:
     return list(zip(EDGES_KPA[:-1], EDGES_KPA[1:], strict=True))
 
 
-def _columns() -> list[tuple[str, str]]:
+def _columns(elastic: bool = False) -> list[tuple[str, str]]:
     cols = [("p_A_kpa", "p_A (kPa)"), ("v_A", "v_A")]
     cols += [(f"seg_{lo:g}_{hi:g}", f"λ {lo:g}–{hi:g}") for lo, hi in _segments()]
     cols += [(f"fit_{lo:g}_200", f"λ* fit {lo:g}–200") for lo in WINDOW_STARTS_KPA]
+    if elastic:
+        cols += [(f"kappa_{lo:g}_{hi:g}", f"κ = p/K {lo:g}–{hi:g}") for lo, hi in _segments()]
     return cols
+
+
+def _elastic(rows: list[dict]) -> bool:
+    return any(key.startswith("kappa_") for row in rows for key in row)
 
 
 def _cell_rows(rows: list[dict]) -> list[dict]:
@@ -119,7 +165,7 @@ def _cell_rows(rows: list[dict]) -> list[dict]:
     out = []
     for cell, members in cells.items():
         entry: dict = {"cell": cell, "seeds": ",".join(str(r["seed"]) for r in members)}
-        for key, _ in _columns():
+        for key, _ in _columns(_elastic(rows)):
             entry[key] = mean_interval([r[key] for r in members])
         out.append(entry)
     return out
@@ -133,7 +179,7 @@ def _fmt(mean: float, half: float, n: int) -> str:
 
 def markdown(rows: list[dict]) -> str:
     """The per-cell table (mean ± 95 %) and the per-run table."""
-    cols = _columns()
+    cols = _columns(_elastic(rows))
     lines = ["| cell (seeds) | " + " | ".join(label for _, label in cols) + " |"]
     lines.append("|---" * (len(cols) + 1) + "|")
     for entry in _cell_rows(rows):
@@ -176,11 +222,14 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path, help="finished run folders <cell>_s<seed>")
     parser.add_argument("--out", type=Path, default=Path("local_compressibility"))
+    parser.add_argument(
+        "--elastic", action="store_true", help="add each segment's κ = p/K from the probes"
+    )
     args = parser.parse_args(argv)
-    rows = [run_row(folder) for folder in args.runs]
+    rows = [run_row(folder, args.elastic) for folder in args.runs]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".md").write_text(markdown(rows))
-    keys = ["cell", "seed", "scale"] + [key for key, _ in _columns()]
+    keys = ["cell", "seed", "scale"] + [key for key, _ in _columns(args.elastic)]
     with args.out.with_suffix(".csv").open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()

@@ -51,3 +51,40 @@ def test_the_cell_table_gives_mean_and_interval_over_seeds():
     # mean 0.2, half-width t(0.975, 2) · 0.1/√3 = 4.303 · 0.0577 = 0.25
     assert "| X (11,2,12) | 0.2 ± 0.25 |" in text
     assert "| X_s2 | 0.2 |" in text
+
+
+def test_the_elastic_slope_is_read_at_each_segments_geometric_middle():
+    """κ = p/K interpolated linearly in ln p between the probed states: κ = 0.01 + 0.002 ln p
+    gives 0.01 + 0.002 ln √(lo·hi) on each segment inside them, NaN outside."""
+    script = load_script("benchmarks/local_compressibility.py")
+    p = np.geomspace(2.0, 120.0, 7)
+    kappa = 0.01 + 0.002 * np.log(p)
+    slopes = script.segment_elastic_slopes(p, kappa)
+    middles = [math.sqrt(lo * hi) for lo, hi in script._segments()]
+    assert math.isnan(slopes[0])  # √3 = 1.73 kPa: below the first probe (2 kPa)
+    assert slopes[1:4] == pytest.approx([0.01 + 0.002 * math.log(m) for m in middles[1:4]])
+    assert math.isnan(slopes[4])  # √20000 = 141 kPa: above the last probe (120 kPa)
+
+
+def test_the_compliance_is_read_at_a_and_along_a_to_b_only(tmp_path):
+    """From a probes.nc: state A and the A→B states (B and past it included), ordered by p and
+    scaled to kPa; the K0 and unloading probes are left out."""
+    import xarray as xr
+
+    script = load_script("benchmarks/local_compressibility.py")
+    labels = ["A", "A_to_B_1", "B", "A_to_B_3", "A_to_C_1", "C"]
+    paths = ["isotropic_to_A", "A_to_B", "A_to_B", "A_to_B", "A_to_C", "A_to_C"]
+    p = np.array([0.5, 5.0, 100.0, 50.0, 3.0, 100.0])
+    bulk = np.array([50.0, 400.0, 8000.0, 5000.0, 1.0, 1.0])
+    xr.Dataset(
+        {
+            "state_label": ("probe", np.array(labels)),
+            "path": ("probe", np.array(paths)),
+            "mean_stress": ("probe", p),
+            "bulk_modulus_linear": ("probe", bulk),
+        }
+    ).to_netcdf(tmp_path / "probes.nc")
+    p_kpa, kappa = script.isotropic_bulk_compliance(tmp_path, 2.0)
+    assert p_kpa == pytest.approx([1.0, 10.0, 100.0, 200.0])
+    assert kappa == pytest.approx([0.01, 0.0125, 0.01, 0.0125])
+    assert script.isotropic_bulk_compliance(tmp_path / "none", 1.0)[0].size == 0
