@@ -91,11 +91,14 @@ def segment_slopes(p_kpa, v, edges=EDGES_KPA) -> list[float]:
 
 def isotropic_bulk_compliance(folder: Path, scale: float) -> tuple[np.ndarray, np.ndarray]:
     """(p in kPa, κ = p/K) at the probes of state A and of A→B's relaxed states (``probes.nc``;
-    empty arrays without one), ordered by p; ``scale`` in kPa per DEM unit."""
+    empty arrays without one, or from a run whose probes hold no bulk modulus), ordered by p;
+    ``scale`` in kPa per DEM unit."""
     probes_file = folder / "probes.nc"
     if not probes_file.exists():
         return np.empty(0), np.empty(0)
     probes = open_probes(probes_file)
+    if "bulk_modulus_linear" not in probes:
+        return np.empty(0), np.empty(0)
     labels = probes["state_label"].values.astype(str)
     paths = probes["path"].values.astype(str)
     keep = (labels == "A") | (paths == "A_to_B")
