@@ -111,9 +111,10 @@ paths): E_v/p at B 101, λ* 0.157, C − B +0.62, K0 0.64, overlaps 1.3 % of d. 
 1520 rods (KB1520, 3–4 h per seed, radial paths included: `study_clay_bonded_stage2`) keeps
 the finding on three seeds (C − B +0.49 ± 0.30) and misses λ* (0.159 ± 0.019, below the rigid
 scene's on the same gases), and its overlaps (1.3 % of d) miss the bar; contacts twice as
-stiff with the bonds kept (KB300S, `study_clay_bonded_overlap`) meet the overlap bar at 300 rods (≤ 0.80 % of d) with λ* 0.169 ± 0.022. Since 2026-12-05 the gap in λ* is
-split decade by decade (`benchmarks/local_compressibility.py`): every gel is stiff, and plastic
-(κ = p/K ≈ 0.01), in the first decade after A. A window at a higher reduced pressure (K280,
+stiff with the bonds kept (KB300S, `study_clay_bonded_overlap`) meet the overlap bar at 300 rods
+(≤ 0.80 % of d) with λ* 0.169 ± 0.022. Since 2026-12-05 the gap in λ* is split decade by
+decade (`benchmarks/local_compressibility.py`): every gel is stiff, and plastic (κ = p/K ≈
+0.01), in the first decade after A. A window at a higher reduced pressure (K280,
 `study_clay_pstar`) lowers λ*; the attraction-free floor (NA, `study_clay_floor`) is no cap;
 smooth rods (MU01K, `study_clay_smooth`) lose the study's K0; μ 0.25 with the contacts refitted
 (MU025K at 300 rods, MU025KL at 1520) gives λ* 0.205 ± 0.006 and C − B +0.82 ± 0.18 at 1520 rods
