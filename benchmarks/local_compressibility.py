@@ -59,18 +59,24 @@ WINDOW_STARTS_KPA = (1.0, 3.0, 10.0)
 STUDY_LAMBDA = 0.25
 
 
-def isotropic_path_kpa(folder: Path) -> tuple[np.ndarray, np.ndarray, float]:
+def run_probes(folder: Path):
+    """The run's ``probes.nc`` dataset, or None without one (read once per run: the stress
+    scale and the elastic slopes both come from it)."""
+    probes_file = folder / "probes.nc"
+    return open_probes(probes_file) if probes_file.exists() else None
+
+
+def isotropic_path_kpa(folder: Path, probes) -> tuple[np.ndarray, np.ndarray, float]:
     """(p in kPa, v) of state A and the relaxed states of A→B, and the stress scale used
     (kPa per DEM unit: the run's measured one where it has one, else its scene's), read as
-    :func:`dem_taichi.analysis.findings.run_findings` reads them."""
+    :func:`dem_taichi.analysis.findings.run_findings` reads them; ``probes`` is the run's
+    probes dataset (:func:`run_probes`) or None."""
     summary = json.loads((folder / "summary.json").read_text())
     relaxed = open_history(folder / "relaxed_states.nc")
     path = path_arrays(summary, relaxed)
     p = path.from_a("A_to_B", "mean_stress")
     v = path.from_a("A_to_B", "specific_volume")
-    probes_file = folder / "probes.nc"
-    probes = probe_arrays(open_probes(probes_file) if probes_file.exists() else None)
-    found = mapped_window_findings(summary, relaxed.attrs, probes, p, v)
+    found = mapped_window_findings(summary, relaxed.attrs, probe_arrays(probes), p, v)
     scale = float(found["stress_scale_kpa_used"])
     return p * scale, v, scale
 
@@ -89,15 +95,11 @@ def segment_slopes(p_kpa, v, edges=EDGES_KPA) -> list[float]:
     return slopes
 
 
-def isotropic_bulk_compliance(folder: Path, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """(p in kPa, κ = p/K) at the probes of state A and of A→B's relaxed states (``probes.nc``;
-    empty arrays without one, or from a run whose probes hold no bulk modulus), ordered by p;
-    ``scale`` in kPa per DEM unit."""
-    probes_file = folder / "probes.nc"
-    if not probes_file.exists():
-        return np.empty(0), np.empty(0)
-    probes = open_probes(probes_file)
-    if "bulk_modulus_linear" not in probes:
+def isotropic_bulk_compliance(probes, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """(p in kPa, κ = p/K) at the probes of state A and of A→B's relaxed states, from a run's
+    probes dataset (:func:`run_probes`; empty arrays for None, or for probes that hold no bulk
+    modulus), ordered by p; ``scale`` in kPa per DEM unit."""
+    if probes is None or "bulk_modulus_linear" not in probes:
         return np.empty(0), np.empty(0)
     labels = probes["state_label"].values.astype(str)
     paths = probes["path"].values.astype(str)
@@ -129,7 +131,8 @@ def run_row(folder: Path, elastic: bool = False) -> dict:
     named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
     if named is None:
         raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
-    p, v, scale = isotropic_path_kpa(folder)
+    probes = run_probes(folder)
+    p, v, scale = isotropic_path_kpa(folder, probes)
     row: dict = {"cell": named.group(1), "seed": int(named.group(2)), "scale": scale}
     row["p_A_kpa"], row["v_A"] = float(p[0]), float(v[0])
     for (lo, hi), slope in zip(_segments(), segment_slopes(p, v), strict=True):
@@ -137,7 +140,7 @@ def run_row(folder: Path, elastic: bool = False) -> dict:
     for lo in WINDOW_STARTS_KPA:
         row[f"fit_{lo:g}_200"] = windowed_compressibility(p, v, (lo, 200.0)).slope
     if elastic:
-        kappas = segment_elastic_slopes(*isotropic_bulk_compliance(folder, scale))
+        kappas = segment_elastic_slopes(*isotropic_bulk_compliance(probes, scale))
         for (lo, hi), kappa in zip(_segments(), kappas, strict=True):
             row[f"kappa_{lo:g}_{hi:g}"] = kappa
     row["_p"], row["_v"] = p, v

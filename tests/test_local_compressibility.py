@@ -84,12 +84,12 @@ def test_the_compliance_is_read_at_a_and_along_a_to_b_only(tmp_path):
             "bulk_modulus_linear": ("probe", bulk),
         }
     ).to_netcdf(tmp_path / "probes.nc")
-    p_kpa, kappa = script.isotropic_bulk_compliance(tmp_path, 2.0)
+    p_kpa, kappa = script.isotropic_bulk_compliance(script.run_probes(tmp_path), 2.0)
     assert p_kpa == pytest.approx([1.0, 10.0, 100.0, 200.0])
     assert kappa == pytest.approx([0.01, 0.0125, 0.01, 0.0125])
-    assert script.isotropic_bulk_compliance(tmp_path / "none", 1.0)[0].size == 0
+    assert script.isotropic_bulk_compliance(script.run_probes(tmp_path / "none"), 1.0)[0].size == 0
     older = tmp_path / "older"  # probes written before the bulk modulus was: no κ, no error
     older.mkdir()
     xr.Dataset({"state_label": ("probe", np.array(labels))}).to_netcdf(older / "probes.nc")
-    assert script.isotropic_bulk_compliance(older, 1.0)[0].size == 0
+    assert script.isotropic_bulk_compliance(script.run_probes(older), 1.0)[0].size == 0
     assert all(math.isnan(k) for k in script.segment_elastic_slopes(np.empty(0), np.empty(0)))
