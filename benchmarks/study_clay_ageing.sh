@@ -6,8 +6,9 @@
 # study_clay_pstar.sh). Criteria and results: benchmarks/results/study_clay_ageing.md.
 #   bash benchmarks/study_clay_ageing.sh OUT [PYTHON] [ONLY]
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_ageing_cells
-#   python benchmarks/local_compressibility.py OUT/AG*_s* SP05iso_s* --elastic \
+#   python benchmarks/local_compressibility.py OUT/AG*_s* PSTAR_OUT/SP05iso_s* --elastic \
 #       --out benchmarks/results/study_clay_ageing_local
+# (PSTAR_OUT: the output folder of study_clay_pstar.sh, whose SP05iso runs are the pairs)
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 for seed in 11 2 12; do

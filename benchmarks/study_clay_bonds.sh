@@ -7,8 +7,9 @@
 # benchmarks/results/study_clay_bonds.md.
 #   bash benchmarks/study_clay_bonds.sh OUT [PYTHON] [ONLY]
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_bonds_cells
-#   python benchmarks/local_compressibility.py OUT/F150_s* OUT/G1_s* SP05iso_s* --elastic \
-#       --out benchmarks/results/study_clay_bonds_local
+#   python benchmarks/local_compressibility.py OUT/F150_s* OUT/G1_s* PSTAR_OUT/SP05iso_s* \
+#       --elastic --out benchmarks/results/study_clay_bonds_local
+# (PSTAR_OUT: the output folder of study_clay_pstar.sh, whose SP05iso runs are the pairs)
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 for seed in 11 2 12; do
