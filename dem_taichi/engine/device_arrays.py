@@ -12,12 +12,13 @@ Shape symbols: ``rods`` the bodies (N rigid rods, or the N n_s discs of bonded r
 M = N n_s, ``spheres`` the discs per body (n_s, or 1 for bonded rods), ``species`` n_s (the
 places in a rod, for the charge pattern), ``capacity`` K (neighbour-list entries per disc, grown
 on overflow), ``rolling_discs`` M with rolling resistance at the contacts, else 1 (the rolling
-springs ψ, one per list entry, cost no memory where the scene has none), ``cells`` the side of
-the cell-list grid; integers are fixed sizes (the small
-arrays of :mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of
-body b to b + 1 holds) is allocated for rigid rods too, never read there. ``fire`` holds the
-FIRE minimiser's constants and running scalars (:mod:`dem_taichi.kernels.fire`), set at the
-start of every minimising call: work, not state.
+springs ψ, one per list entry, cost no memory where the scene has none), ``strength_rods`` N
+with a spread of the rods' strengths (``[long_range] strength_spread``), else 1, ``cells`` the
+side of the cell-list grid; integers are fixed sizes (the small arrays of
+:mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of body b
+to b + 1 holds) is allocated for rigid rods too, never read there. ``fire`` holds the FIRE
+minimiser's constants and running scalars (:mod:`dem_taichi.kernels.fire`), set at the start of
+every minimising call: work, not state.
 
 Roles: ``state`` (the dynamical state, restored bit for bit), ``constant`` (set once from the
 scene), ``derived`` (recomputed from the state: disc positions), ``work`` (kernel scratch: cell
@@ -110,6 +111,7 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("disc_cell", _I, ("discs",), "work"),
     DeviceArray("charge", _I, ("species",), "constant"),
     DeviceArray("pair_table", _R, ("species", "species", 3), "constant"),
+    DeviceArray("rod_strength", _R, ("strength_rods",), "constant"),
     DeviceArray("cell", _R, (L.N_CELL,), "state", "cell"),
     DeviceArray("flags", _I, (L.N_FLAGS,), "state", "flags"),
     DeviceArray("params", _R, (L.N_PARAMS,), "state", "params"),

@@ -31,6 +31,7 @@ from dem_taichi.scene.geometry import (
     body_geometry,
     pair_table,
     rod_geometry,
+    rod_strengths,
     species_parameters,
 )
 
@@ -52,7 +53,9 @@ class Physics:
 
     ``bonded``: bonded rods (every disc a body, :mod:`dem_taichi.kernels.bonds`); ``chain``: the
     discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
-    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`).
+    ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`);
+    ``strength``: the rods' long-range strengths differ (``[long_range] strength_spread`` > 0:
+    :func:`dem_taichi.scene.geometry.rod_strengths`).
     """
 
     friction: bool
@@ -61,19 +64,22 @@ class Physics:
     bonded: bool = False
     chain: int = 1
     rolling: bool = False
+    strength: bool = False
 
 
 def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics:
     """The switches of ``scene``: friction needs k_t > 0; the long-range and van der Waals laws
     need a charged species (``charge``, per place in the rod); ``n_spheres`` is n_s of a rod."""
     charged = bool(np.any(charge != 0))
+    long_range = scene.long_range.enabled and charged
     return Physics(
         friction=scene.contact.friction and scene.contact.k_t > 0,
-        long_range=scene.long_range.enabled and charged,
+        long_range=long_range,
         vdw=scene.van_der_waals.enabled and charged,
         bonded=scene.bonded,
         chain=n_spheres,
         rolling=scene.rolling_parameters.enabled,
+        strength=long_range and scene.long_range.strength_spread > 0.0,
     )
 
 
@@ -237,8 +243,9 @@ class ResolvedScene:
     (charge, F_max, k_a of each place in the rod: :func:`dem_taichi.scene.geometry.
     species_parameters`), the long-range law's ``pair_table`` of the species pairs
     (:func:`dem_taichi.scene.geometry.pair_table`), the compile-time ``physics``, the interaction
-    ``cutoff`` and the neighbour-list radius ``list_radius`` (centre distances, length) and the
-    runtime ``parameters``."""
+    ``cutoff`` and the neighbour-list radius ``list_radius`` (centre distances, length), the
+    runtime ``parameters`` and the rods' strengths ``rod_strength`` ((N,), or None when the rods
+    are alike: :func:`dem_taichi.scene.geometry.rod_strengths`)."""
 
     geometry: RodGeometry
     body: RodGeometry
@@ -248,6 +255,7 @@ class ResolvedScene:
     cutoff: float
     list_radius: float
     parameters: EngineParameters
+    rod_strength: np.ndarray | None = None
 
 
 def resolve_scene(scene: Scene) -> ResolvedScene:
@@ -260,7 +268,10 @@ def resolve_scene(scene: Scene) -> ResolvedScene:
     cutoff = interaction_cutoff(scene, geometry.diameter, physics, table)
     list_radius = cutoff + scene.integration.skin
     parameters = resolve_parameters(scene, body, physics, list_radius, cutoff)
-    return ResolvedScene(geometry, body, species, table, physics, cutoff, list_radius, parameters)
+    strength = rod_strengths(scene) if physics.strength else None
+    return ResolvedScene(
+        geometry, body, species, table, physics, cutoff, list_radius, parameters, strength
+    )
 
 
 def _check_slots() -> None:

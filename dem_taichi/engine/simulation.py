@@ -172,6 +172,8 @@ class Simulation:
         self.bonded = scene.bonded
         self.charge = resolved.species[0]
         self._pair_table = resolved.pair_table
+        #: the rods' long-range strengths s_r ((N,)), or None when the rods are alike
+        self.rod_strength = resolved.rod_strength
         self.physics = resolved.physics
         self.n_rods = scene.particles.n_rods
         self.n_discs = self.n_rods * self.geometry.n_spheres
@@ -197,7 +199,7 @@ class Simulation:
         #: what the simulation reports (measures, rods, network), read from its arrays
         self.views = SimulationViews(
             self.a, self._launch, resolved.species, self.geometry, self.body, self.physics,
-            self.full_list, self.n_rods, self.n_bodies, self.timings,
+            self.full_list, self.n_rods, self.n_bodies, self.timings, resolved.rod_strength,
         )  # fmt: skip
         #: copies, restores and checkpoints of the state arrays
         self.state_io = SimulationState(
@@ -223,6 +225,7 @@ class Simulation:
         self._sizes = {"rods": n, "discs": m, "spheres": ns, "capacity": self.capacity}
         self._sizes["rolling_discs"] = m if self.physics.rolling else 1
         self._sizes["species"] = self.geometry.n_spheres
+        self._sizes["strength_rods"] = self.n_rods if self.physics.strength else 1
         self._sizes["cells"] = cells_axis
         # the parallel measure's block rows (kernels.measures.measure_sums_blocked); one unused
         # row on the serial path
@@ -234,6 +237,8 @@ class Simulation:
         self.a["bond_intact"].from_numpy(np.ones(n, dtype=np.int32))
         self.a["charge"].from_numpy(self.charge.astype(np.int32))
         self.a["pair_table"].from_numpy(self._pair_table.astype(self._real))
+        strength = self.rod_strength if self.rod_strength is not None else np.ones(1)
+        self.a["rod_strength"].from_numpy(strength.astype(self._real))
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))

@@ -39,7 +39,8 @@ class SimulationViews:
     ``species`` (charge, F_max, k_a of each place in the rod), ``geometry`` (the rod's), ``body``
     (the engine's bodies), ``physics``, ``full_list`` (a full neighbour list), ``n_rods`` and
     ``n_bodies`` as the simulation has them; ``timings``: the simulation's seconds by kind, to
-    which the measure kernel's are added.
+    which the measure kernel's are added; ``rod_strength``: the rods' long-range strengths (None:
+    alike).
     """
 
     def __init__(
@@ -54,6 +55,7 @@ class SimulationViews:
         n_rods: int,
         n_bodies: int,
         timings: dict[str, float],
+        rod_strength: np.ndarray | None = None,
     ) -> None:
         self.a = arrays
         self._launch = launch
@@ -66,6 +68,7 @@ class SimulationViews:
         self.n_rods = n_rods
         self.n_bodies = n_bodies
         self.timings = timings
+        self.rod_strength = rod_strength
 
     @property
     def parameters(self) -> EngineParameters:
@@ -283,4 +286,5 @@ class SimulationViews:
             rolling_springs=(
                 self.a["nbr_psi"].to_numpy().astype(float) if self.physics.rolling else None
             ),
+            rod_strength=None if self.rod_strength is None else self.rod_strength.copy(),
         )

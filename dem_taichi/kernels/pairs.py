@@ -62,6 +62,7 @@ def pair_interaction(
     nbr_psi: T,
     charge: T,
     pair_table: T,
+    rod_strength: T,
     bond_intact: T,
     cell: T,
     params: T,
@@ -71,11 +72,13 @@ def pair_interaction(
     Returns (F_x, F_y, τ_i, τ_j, j, active, f_contact_normal, f_tangential, δ, U_contact, U_long,
     long_active, b_x, b_y) with F the force on i (−F on j), τ the torques on the two rods, b the
     centroid branch vector X_P − X_Q − shift. ``update``: advance ξ by v_t Δt (time step) or just
-    read it (measures). Bonded rods (``phys.bonded``): every disc is a body (``ns`` = 1), species
-    by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with their
-    bond intact do not interact (:mod:`dem_taichi.kernels.bonds`). Rolling resistance
-    (``phys.rolling``): the rolling spring ψ of the entry adds the couple M (on i; −M on j) of
-    :mod:`dem_taichi.physics.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
+    read it (measures). Bonded rods (``phys.bonded``): every disc is a body (``ns`` = 1),
+    species by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with
+    their bond intact do not interact (:mod:`dem_taichi.kernels.bonds`). Rod strengths
+    (``phys.strength``): the long-range F_max and k_a of the pair are multiplied by the harmonic
+    mean of ``rod_strength`` of the two discs' rods (rod = disc // ``phys.chain``). Rolling
+    resistance (``phys.rolling``): the rolling spring ψ of the entry adds the couple M (on i; −M
+    on j) of :mod:`dem_taichi.physics.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
     """
     lx = cell[C_LX]
     ly = cell[C_LY]
@@ -175,6 +178,14 @@ def pair_interaction(
                 if s_f != 0.0:
                     s_k = pair_table[si, sj, 1]
                     g_max = pair_table[si, sj, 2]
+                    if ti.static(phys.strength):
+                        # the rods' strengths s: F_max and k_a times their harmonic mean, the
+                        # range kept ([long_range] strength_spread)
+                        s_a = rod_strength[i // phys.chain]
+                        s_b = rod_strength[j // phys.chain]
+                        m = 2.0 * s_a * s_b / (s_a + s_b)
+                        s_f *= m
+                        s_k *= m
                     f_l = long_range_force(gap, s_f, s_k, g_max)
                     fn += f_l
                     if f_l != 0.0:
@@ -231,6 +242,7 @@ def disc_forces(
     nbr_count: T,
     charge: T,
     pair_table: T,
+    rod_strength: T,
     bond_intact: T,
     cell: T,
     params: T,
@@ -264,6 +276,7 @@ def disc_forces(
             nbr_psi,
             charge,
             pair_table,
+            rod_strength,
             bond_intact,
             cell,
             params,

@@ -309,11 +309,18 @@ class PairParameters:
 
 
 def pair_parameters(snapshot: NetworkSnapshot) -> PairParameters:
-    """Pair F_max, k_a (harmonic mean), g_max = F_max/k_a and charge product of listed pairs."""
+    """Pair F_max, k_a (harmonic mean; times the harmonic mean of the two rods' strengths when the
+    snapshot has them), g_max = F_max/k_a and charge product of listed pairs."""
     species_i = snapshot.species(snapshot.pair_i)
     species_j = snapshot.species(snapshot.pair_j)
     f_max = harmonic_mean(snapshot.f_max[species_i], snapshot.f_max[species_j])
     k_a = harmonic_mean(snapshot.k_a[species_i], snapshot.k_a[species_j])
+    if snapshot.rod_strength is not None:  # the rods' strengths: the range g_max is kept
+        chain = snapshot.charge.shape[0]
+        s = snapshot.rod_strength
+        m = harmonic_mean(s[snapshot.pair_i // chain], s[snapshot.pair_j // chain])
+        f_max = f_max * m
+        k_a = k_a * m
     g_max = np.where(k_a > 0.0, f_max / np.where(k_a > 0.0, k_a, 1.0), 0.0)
     charge_i = snapshot.charge[species_i]
     charge_j = snapshot.charge[species_j]

@@ -100,6 +100,9 @@ class NetworkSnapshot:
         rolling_stiffness: κ_r = k_r d_eff² [force·length/rad] of the contacts' rolling springs
             (0: no rolling resistance).
         rolling_cap: μ_r d_eff [length], the rolling moment cap per unit contact force.
+        rod_strength: (N_rods,) long-range strength s of every rod (the rods of n_s places: for
+            bonded rods, disc // n_s), a pair's F_max and k_a multiplied by the harmonic mean of
+            its two rods' s ([long_range] strength_spread); None: all 1.
     """
 
     cell_lengths: np.ndarray
@@ -126,6 +129,7 @@ class NetworkSnapshot:
     rolling_spring: np.ndarray | None = None
     rolling_stiffness: float = 0.0
     rolling_cap: float = 0.0
+    rod_strength: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -181,6 +185,13 @@ class NetworkSnapshot:
                 f"NetworkSnapshot.f_max = {self.f_max}, k_a = {self.k_a}: a charged disc needs "
                 "both > 0 (range g_max = F_max/k_a) or both 0"
             )
+
+        if self.rod_strength is not None:
+            n_chains = n_rods * n_s // n_species
+            strength = _as_array("rod_strength", self.rod_strength, float, (n_chains,))
+            if not np.all(np.isfinite(strength)) or np.any(strength <= 0.0):
+                raise ValueError("NetworkSnapshot.rod_strength: need finite values > 0")
+            put(self, "rod_strength", strength)
 
         pair_i = _as_array("pair_i", self.pair_i, np.int64, (-1,))
         n_pairs = pair_i.shape[0]

@@ -178,6 +178,27 @@ def species_parameters(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return charge, f_max, k_a
 
 
+#: the second entry of the seed of the rods' strengths (:func:`rod_strengths`): a stream of its
+#: own, so that a scene with a spread draws the same gas as the scene without it
+STRENGTH_STREAM = 0x5157
+
+
+def rod_strengths(scene: Scene) -> np.ndarray | None:
+    """(N,) strength s_r of every rod, or None when the rods are alike (no long range, or
+    ``[long_range] strength_spread`` = 0).
+
+    s_r = exp(σ z_r) with z_r ~ N(0, 1) drawn from ``default_rng([seed, STRENGTH_STREAM])``,
+    divided by the mean over the rods (so the mean strength is exactly 1 at any N: the spread
+    changes the distribution, not the level). Deterministic for a given ``[scene] seed``.
+    """
+    lr = scene.long_range
+    if not lr.enabled or lr.strength_spread == 0.0:
+        return None
+    rng = np.random.default_rng([scene.scene.seed, STRENGTH_STREAM])
+    s = np.exp(lr.strength_spread * rng.standard_normal(scene.particles.n_rods))
+    return s / s.mean()
+
+
 @dataclass(frozen=True)
 class GasState:
     cell_lengths: np.ndarray  # (2,)

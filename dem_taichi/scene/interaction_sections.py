@@ -194,7 +194,13 @@ class Bonds(SceneSection):
 class LongRange(SceneSection):
     """``[long_range]``: the electro-chemical long-range forces between charged discs of
     different rods (docs/science/dem-model.md §1.2): a force F_max at contact falling linearly to
-    0 at the gap g_max = F_max / k_a, its sign the product of the discs' charges."""
+    0 at the gap g_max = F_max / k_a, its sign the product of the discs' charges.
+
+    ``strength_spread`` σ > 0 gives the rods a distribution of strengths (a modelling option of
+    ours, not the study's: its rods are all alike): rod r draws s_r = exp(σ z_r), z_r ~ N(0, 1)
+    from its own random stream of the scene's seed (the gas is unchanged), and the s_r are
+    divided by their mean; a pair of discs of rods a and b has F_max and k_a times
+    2 s_a s_b / (s_a + s_b). Default 0 (rods alike)."""
 
     SECTION = "long_range"
     enabled: bool = field(default=False, metadata=_doc("long-range forces on", "-"))
@@ -238,6 +244,18 @@ class LongRange(SceneSection):
             lo_open=True,
             doc="slope k_a of the force with the gap, pair of inner discs",
             unit="force/length",
+        ),
+    )
+    strength_spread: float = field(
+        default=0.0,
+        metadata=_range(
+            0.0,
+            2.0,
+            doc="spread σ of the rods' bond strengths: each rod draws s = exp(σ z), z ~ N(0, 1), "
+            "rescaled to a mean of 1 over the rods; a pair's F_max and k_a are multiplied by "
+            "the harmonic mean of its two rods' s, so the range g_max is kept. 0: every rod alike "
+            "(costs nothing)",
+            unit="-",
         ),
     )
 

@@ -1,0 +1,195 @@
+"""A spread of the rods' long-range strengths (``[long_range] strength_spread``, issue 19).
+
+- the draw: none when the rods are alike, a mean of exactly 1, the log-spread σ, deterministic
+  per seed, a stream of its own (the gas is the same with and without a spread);
+- two rods: the pair's F_max and k_a are the scene's times the harmonic mean of the two rods'
+  strengths, so the range is kept, in force and energy, for both facing pairs;
+- a jammed packing, rigid and bonded, on the serial, parallel and gather paths: the engine's
+  forces and long-range energy equal the numpy reference (:mod:`dem_taichi.physics.forcelaw`)
+  on the engine's snapshot, which carries the strengths; a spread switched off is the scene
+  without the key, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dem_taichi.engine.parameters import resolve_scene
+from dem_taichi.engine.simulation import CellControl, Simulation
+from dem_taichi.kernels import layout
+from dem_taichi.physics import forcelaw
+from dem_taichi.scene.config import SceneError, scene_from_toml
+from dem_taichi.scene.geometry import GasState, generate_gas, rod_strengths
+
+L_CELL = 12.0
+
+TWO_RODS = """
+[scene]
+seed = {seed}
+[particles]
+n_rods = 2
+n_spheres = 3
+[contact]
+k_n = 1.0e5
+gamma_n = 0.0
+friction = false
+[long_range]
+enabled = true
+f_max_edge = 10.0
+f_max_inner = 30.0
+k_a_edge = 50.0
+k_a_inner = 150.0
+strength_spread = {spread}
+[integration]
+local_damping = 0.0
+skin = 0.2
+"""
+
+
+def facing(gap: float, face: str) -> tuple[GasState, int]:
+    """Rod A along x; its edge disc faces rod B's edge disc (B collinear) or middle disc (B
+    vertical) at surface gap ``gap``. Returns the gas and B's species facing A's edge disc."""
+    x0 = 3.0
+    xb = x0 + 2.0 + gap
+    if face == "edge":
+        positions, angles, species = [[x0, 5.0], [xb + 1.0, 5.0]], [0.0, 0.0], 0
+    else:
+        positions, angles, species = [[x0, 5.0], [xb, 5.0]], [0.0, math.pi / 2], 1
+    gas = GasState(
+        np.array([L_CELL, L_CELL]), np.array(positions, dtype=float), np.array(angles),
+        np.zeros((2, 2)), np.zeros(2),
+    )  # fmt: skip
+    return gas, species
+
+
+def test_no_draw_when_the_rods_are_alike():
+    assert rod_strengths(scene_from_toml(TWO_RODS.format(seed=1, spread=0.0))) is None
+    off = scene_from_toml("[long_range]\nenabled = false\nstrength_spread = 0.8")
+    assert rod_strengths(off) is None
+    assert not resolve_scene(off).physics.strength
+    alike = scene_from_toml(TWO_RODS.format(seed=1, spread=0.0))
+    assert not resolve_scene(alike).physics.strength
+    assert resolve_scene(scene_from_toml(TWO_RODS.format(seed=1, spread=0.5))).physics.strength
+
+
+@pytest.mark.parametrize("sigma", [0.3, 1.0])
+def test_the_draw_has_mean_one_the_log_spread_and_its_own_stream(sigma):
+    scene = scene_from_toml(
+        f"[scene]\nseed = 7\n[particles]\nn_rods = 20000\n[long_range]\nenabled = true\n"
+        f"strength_spread = {sigma}"
+    )
+    s = rod_strengths(scene)
+    assert s.shape == (20000,) and np.all(s > 0.0)
+    assert s.mean() == pytest.approx(1.0, rel=1e-12)
+    assert np.std(np.log(s)) == pytest.approx(sigma, rel=0.03)  # 20000 draws: ~0.5 % noise
+    np.testing.assert_array_equal(s, rod_strengths(scene))  # deterministic
+    other = rod_strengths(scene.replace(scene={"seed": 8}))
+    assert not np.allclose(s, other)
+
+
+def test_the_gas_does_not_depend_on_the_spread():
+    base = "[scene]\nseed = 3\n[particles]\nn_rods = 40\n[long_range]\nenabled = true\n"
+    alike = generate_gas(scene_from_toml(base))
+    spread = generate_gas(scene_from_toml(base + "strength_spread = 1.0"))
+    np.testing.assert_array_equal(alike.position, spread.position)
+    np.testing.assert_array_equal(alike.angle, spread.angle)
+    np.testing.assert_array_equal(alike.velocity, spread.velocity)
+
+
+@pytest.mark.parametrize("face", ["edge", "inner"])
+@pytest.mark.parametrize("gap", [-0.01, 0.05, 0.15, 0.2 + 1e-6])
+def test_two_rods_feel_the_harmonic_mean_of_their_strengths(face, gap):
+    gas, sj = facing(gap, face)
+    f_max = np.array([10.0, 30.0, 10.0])
+    k_a = np.array([50.0, 150.0, 50.0])
+    charge = np.array([1, -1, 1])
+    spread = Simulation(scene_from_toml(TWO_RODS.format(seed=4, spread=1.0)), initial=gas)
+    s = spread.rod_strength
+    assert s is not None and abs(s[0] - s[1]) > 0.1  # two different strengths
+    m = 2 * s[0] * s[1] / (s[0] + s[1])
+    f_pair = m * forcelaw.harmonic_mean(f_max[2], f_max[sj])
+    k_pair = m * forcelaw.harmonic_mean(k_a[2], k_a[sj])
+    sign = charge[2] * charge[sj]
+    expected = float(forcelaw.long_range_force(gap, f_pair, k_pair, sign))
+    expected += 1.0e5 * max(-gap, 0.0)
+    force_a = spread.get_state()["force"][0]
+    assert force_a[0] == pytest.approx(-expected, rel=1e-9, abs=1e-9)
+    energy = float(forcelaw.long_range_potential(gap, f_pair, k_pair, sign))
+    assert spread.measure()["long_range_energy"] == pytest.approx(energy, rel=1e-9, abs=1e-12)
+    if gap > 0.2:  # the range g_max = F_max / k_a is kept: nothing beyond it, whatever s
+        assert force_a[0] == 0.0
+
+
+def network_scene(rod_model: str, spread: float, execution: str = "serial") -> str:
+    return f"""
+[scene]
+seed = 5
+[particles]
+n_rods = 30
+n_spheres = 5
+initial_area_fraction = 0.2
+rod_model = "{rod_model}"
+[contact]
+e_n = 0.5
+[long_range]
+enabled = true
+strength_spread = {spread}
+[integration]
+steps_per_call = 100
+execution = "{execution}"
+[control]
+inertial_number_max = 0.01
+"""
+
+
+def jammed(scene_text: str) -> Simulation:
+    sim = Simulation(scene_from_toml(scene_text))
+    sim.run(4000, control=CellControl.strain_rate(0.1), output_every=10**9)
+    state = sim.get_state()
+    state["velocity"][:] = 0.0
+    state["angular_velocity"][:] = 0.0
+    state["params"][[layout.P_RATE_X, layout.P_RATE_Y]] = 0.0  # a static network
+    sim.set_state(state)
+    sim.recompute_forces()
+    return sim
+
+
+@pytest.mark.parametrize(
+    "rod_model, execution",
+    [("rigid", "serial"), ("bonded", "serial"), ("rigid", "parallel"), ("bonded", "gather")],
+)
+def test_engine_matches_the_numpy_reference_with_a_spread(rod_model, execution):
+    sim = jammed(network_scene(rod_model, 0.8, execution))
+    snap = sim.snapshot()
+    assert snap.rod_strength is not None and snap.rod_strength.shape == (30,)
+    assert sim.measure()["n_long_range_pairs"] > 10
+    energy = forcelaw.potential_energy(snap)
+    assert sim.measure()["long_range_energy"] == pytest.approx(energy.long_range, rel=1e-9)
+    alike = forcelaw.potential_energy(snap.__class__(**{**snap.__dict__, "rod_strength": None}))
+    assert abs(alike.long_range - energy.long_range) > 1e-3 * abs(energy.long_range)
+    if rod_model == "rigid":
+        force, torque = forcelaw.rod_forces_and_torques(snap)
+        state = sim.get_state()
+        scale = np.abs(force).max()
+        np.testing.assert_allclose(state["force"], force, atol=1e-9 * scale)
+        np.testing.assert_allclose(state["torque"], torque, atol=1e-9 * scale)
+        stress = forcelaw.stress_from_forces(snap)
+        np.testing.assert_allclose(sim.stress(), stress, atol=1e-9 * scale)
+
+
+def test_a_spread_of_zero_is_the_scene_without_the_key_bit_for_bit():
+    text = network_scene("rigid", 0.0)
+    without = jammed(text.replace("strength_spread = 0.0\n", ""))
+    with_zero = jammed(text)
+    for key in ("reduced_position", "angle", "force", "torque"):
+        np.testing.assert_array_equal(without.get_state()[key], with_zero.get_state()[key])
+
+
+def test_the_spread_is_validated_at_load():
+    with pytest.raises(SceneError, match="strength_spread"):
+        scene_from_toml("[long_range]\nenabled = true\nstrength_spread = -0.1")
+    with pytest.raises(SceneError, match="strength_spread"):
+        scene_from_toml("[long_range]\nenabled = true\nstrength_spread = 3.0")
