@@ -1,0 +1,21 @@
+#!/bin/bash
+# Issue 19: a spread of the rods' bond strengths (cells SS05 and SS10): the shipped `study_demo`
+# with [long_range] strength_spread σ = 0.5 or 1.0 (each rod's F_max and k_a times a lognormal
+# strength of mean 1, the range kept); the isotropic path alone (gas ageing -> A, A->B on to 200,
+# probes at every increment), seeds 11, 2, 12, one worker each. Paired by seed with SP05iso
+# (study_clay_pstar.sh): the gas is the same, the strengths are drawn from a stream of their own.
+# Criteria and results: benchmarks/results/study_clay_spread.md.
+#   bash benchmarks/study_clay_spread.sh OUT [PYTHON] [ONLY]
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_spread_cells
+#   python benchmarks/local_compressibility.py OUT/SS05_s* OUT/SS10_s* PSTAR_OUT/SP05iso_s* \
+#       --elastic --out benchmarks/results/study_clay_spread_local
+# (PSTAR_OUT: the output folder of study_clay_pstar.sh, whose SP05iso runs are the pairs)
+set -u
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+for cell in SS10 SS05; do
+  sigma=$([ $cell = SS10 ] && echo 1.0 || echo 0.5)
+  for seed in 11 2 12; do
+    run_protocol ${cell}_s$seed study_demo --workers 1 --set scene.seed=$seed \
+      "${ISOTROPIC_ONLY[@]}" --set long_range.strength_spread=$sigma
+  done
+done
