@@ -69,6 +69,7 @@ EXPERIMENTS = (
     ("study_clay_smooth_size.csv", "sweeps/study_mu025k.toml", "study_clay_smooth.md"),
     ("study_clay_ageing_cells.csv", "study_clay_ageing.sh", "study_clay_ageing.md"),
     ("study_clay_bonds_cells.csv", "study_clay_bonds.sh", "study_clay_bonds.md"),
+    ("study_clay_spread_cells.csv", "study_clay_spread.sh", "study_clay_spread.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -120,7 +121,8 @@ smooth rods (MU01K, `study_clay_smooth`) lose the study's K0; μ 0.25 with the c
 (MU025K at 300 rods, MU025KL at 1520) gives λ* 0.205 ± 0.006 and C − B +0.82 ± 0.18 at 1520 rods
 but n 0.951, at the band's edge; neither the gas's ageing time (AG500, AG8000,
 `study_clay_ageing`) nor the bonds' strength or range (F150, G1, `study_clay_bonds`) moves the
-first decade or λ*. The TIV
+first decade or λ*, and a lognormal spread of the rods' bond strengths (SS05, SS10, and SS10F
+with the mean pair's bond kept; `study_clay_spread`) does not either. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
