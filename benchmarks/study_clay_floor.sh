@@ -12,8 +12,9 @@
 # Hypothesis, criteria and results: benchmarks/results/study_clay_floor.md.
 #   bash benchmarks/study_clay_floor.sh OUT [PYTHON] [ONLY]
 #   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_floor_cells
-#   python benchmarks/local_compressibility.py OUT/MU01_s* OUT/SP05iso_s* \
+#   python benchmarks/local_compressibility.py OUT/MU01_s* PSTAR_OUT/SP05iso_s* \
 #     --out benchmarks/results/study_clay_floor_local
+# (PSTAR_OUT: the output folder of study_clay_pstar.sh; the cell table holds OUT's cells only)
 set -u
 source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
 NO_ROLLING=$(no_rolling_scene)
