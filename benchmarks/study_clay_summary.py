@@ -70,6 +70,7 @@ EXPERIMENTS = (
     ("study_clay_ageing_cells.csv", "study_clay_ageing.sh", "study_clay_ageing.md"),
     ("study_clay_bonds_cells.csv", "study_clay_bonds.sh", "study_clay_bonds.md"),
     ("study_clay_spread_cells.csv", "study_clay_spread.sh", "study_clay_spread.md"),
+    ("study_clay_rolling_cells.csv", "study_clay_rolling.sh", "study_clay_rolling.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -122,7 +123,10 @@ smooth rods (MU01K, `study_clay_smooth`) lose the study's K0; μ 0.25 with the c
 but n 0.951, at the band's edge; neither the gas's ageing time (AG500, AG8000,
 `study_clay_ageing`) nor the bonds' strength or range (F150, G1, `study_clay_bonds`) moves the
 first decade or λ*, and a lognormal spread of the rods' bond strengths (SS05, SS10, and SS10F
-with the mean pair's bond kept; `study_clay_spread`) does not either. The TIV
+with the mean pair's bond kept; `study_clay_spread`) does not either, nor does a fifth of the
+rolling cap (RF01, `study_clay_rolling`: denser at 100 kPa on every seed, but denser at 1 kPa
+too). Every gel's specific volume falls by 1.9–2.8× between 1 and 100 kPa, the study's by 3.2
+(`compression_ends`). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
