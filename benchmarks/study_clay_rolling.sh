@@ -16,3 +16,13 @@ for seed in 11 2 12; do
   run_protocol RF01_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set contact.rolling_friction=0.1
 done
+# cell MU025KR (added after RF01's results, criteria on the page before its runs): MU025K's
+# rods (study_clay_smooth.sh: mu 0.25) with RF01's rolling cap (rolling_friction 0.1), the
+# contact springs refitted by the stiffness rule on RF01's measured stiffening (E_v/p at B x1.29
+# against SP05iso): MU025K's k_n 4.4e4 / 1.29 = 3.4e4, k_t and k_r in proportion; the whole
+# `study_demo` protocol (K0 and unloading included), seeds 11, 2, 12
+for seed in 11 2 12; do
+  run_protocol MU025KR_s$seed study_demo --workers 1 --set scene.seed=$seed --set contact.mu=0.25 \
+    --set contact.k_n=3.4e4 --set contact.k_t=6.8e3 --set contact.rolling_stiffness=1.36e4 \
+    --set contact.rolling_friction=0.1
+done
