@@ -125,8 +125,8 @@ but n 0.951, at the band's edge; neither the gas's ageing time (AG500, AG8000,
 first decade or λ*, and a lognormal spread of the rods' bond strengths (SS05, SS10, and SS10F
 with the mean pair's bond kept; `study_clay_spread`) does not either, nor does a fifth of the
 rolling cap (RF01, `study_clay_rolling`: denser at 100 kPa on every seed, but denser at 1 kPa
-too; with μ 0.25, MU025KR, it costs K0: 0.78 ± 0.11). Every gel's specific volume falls by 1.9–2.8× between 1 and 100 kPa, the study's by 3.2
-(`compression_ends`). The TIV
+too; with μ 0.25, MU025KR, it costs K0: 0.78 ± 0.11). Every gel's specific volume falls by
+1.9–2.8× between 1 and 100 kPa, the study's by 3.2 (`compression_ends`). The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
