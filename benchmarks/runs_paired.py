@@ -6,8 +6,9 @@ Usage::
         [--before-cell CELL] [--after-cell CELL]
 
 Each file is a ``*_runs.csv`` of ``benchmarks/study_clay_pilots.py`` (one row per run: its
-seed and its findings), or a per-run ``.csv`` of ``benchmarks/local_compressibility.py`` (its
-decade-by-decade slopes, fits and, with ``--elastic``, κ; told apart by its header). A file that
+seed and its findings), a per-run ``.csv`` of ``benchmarks/local_compressibility.py`` (its
+decade-by-decade slopes, fits and, with ``--elastic``, κ) or of ``benchmarks/compression_ends.py``
+(v at 1 and 100 kPa and the chord between them), told apart by the header. A file that
 holds several cells is narrowed to one by ``--before-cell``/``--after-cell`` (its ``cell``
 column). The rows are paired by seed; per finding: the before and after values
 of each seed, the mean paired difference (after − before) with its 95 % interval (Student t
@@ -28,16 +29,20 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
+from compression_ends import COLUMNS as ENDS_COLUMNS  # noqa: E402
 from local_compressibility import _columns as local_columns  # noqa: E402
 from paired_paths_table import interval  # noqa: E402
 from study_clay_pilots import COLUMNS  # noqa: E402
 
 
 def columns_of(path: Path) -> list[tuple[str, str, int]]:
-    """(column, label, digits) of a runs file: study_clay_pilots.py's findings, or
-    local_compressibility.py's columns when the header holds its segment slopes."""
+    """(column, label, digits) of a runs file: study_clay_pilots.py's findings,
+    local_compressibility.py's columns when the header holds its segment slopes, or
+    compression_ends.py's when it holds the chord."""
     with path.open() as handle:
         header = next(csv.reader(handle))
+    if "chord" in header:
+        return [(key, label, 3) for key, label in ENDS_COLUMNS]
     if "seg_1_3" not in header:
         return list(COLUMNS)
     elastic = any(key.startswith("kappa_") for key in header)

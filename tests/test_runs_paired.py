@@ -54,6 +54,24 @@ def test_a_local_compressibility_table_is_read_with_its_own_columns(tmp_path):
     assert "| λ 1–3 | 0.1 | 0.16 | +0.06 |" in text
 
 
+def test_a_compression_ends_table_is_read_with_its_own_columns(tmp_path):
+    script = load_script("benchmarks/runs_paired.py")
+    header = ["cell", "seed", "scale", "p_A_kpa", "v_A", "v_1", "v_100", "chord"]
+    path = _write(
+        tmp_path / "ends.csv",
+        header,
+        [["A", 11, 1.0, 0.5, 6.0, 5.8, 2.9, 0.15], ["B", 11, 1.0, 0.6, 6.2, 5.6, 2.4, 0.18]],
+    )
+    keys = [key for key, _label, _digits in script.columns_of(path)]
+    assert keys == ["p_A_kpa", "v_A", "v_1", "v_100", "chord"]
+    text = "\n".join(
+        script.table(
+            script.read_runs(path, "A"), script.read_runs(path, "B"), script.columns_of(path)
+        )
+    )
+    assert "| v at 100 kPa | 2.9 | 2.4 | -0.5 |" in text
+
+
 def test_files_of_different_kinds_are_refused(tmp_path):
     script = load_script("benchmarks/runs_paired.py")
     pilots = _write(tmp_path / "p.csv", ["cell", "seed", "lambda_window"], [["X", 11, 0.1]])
