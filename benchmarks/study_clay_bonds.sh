@@ -21,3 +21,9 @@ for seed in 11 2 12; do
   run_protocol G1_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
     --set long_range.k_a_edge=300 --set long_range.k_a_inner=300
 done
+# cell G025 (added 2026-12-05 after the two ends of study_clay_spread.md; criteria on
+# study_clay_bonds.md before its runs): half the range, g_max 0.25 d, at the same F_max (k_a 1200)
+for seed in 11 2 12; do
+  run_protocol G025_s$seed study_demo --workers 1 --set scene.seed=$seed "${ISOTROPIC_ONLY[@]}" \
+    --set long_range.k_a_edge=1200 --set long_range.k_a_inner=1200
+done
