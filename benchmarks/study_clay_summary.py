@@ -121,7 +121,7 @@ decade (`benchmarks/local_compressibility.py`): every gel is stiff, and plastic 
 smooth rods (MU01K, `study_clay_smooth`) lose the study's K0; μ 0.25 with the contacts refitted
 (MU025K at 300 rods, MU025KL at 1520) gives λ* 0.205 ± 0.006 and C − B +0.82 ± 0.18 at 1520 rods
 but n 0.951, at the band's edge; neither the gas's ageing time (AG500, AG8000,
-`study_clay_ageing`) nor the bonds' strength or range (F150, G1, `study_clay_bonds`) moves the
+`study_clay_ageing`) nor the bonds' strength or range (F150, G1, G025, `study_clay_bonds`) moves the
 first decade or λ*, and a lognormal spread of the rods' bond strengths (SS05, SS10, and SS10F
 with the mean pair's bond kept; `study_clay_spread`) does not either, nor does a fifth of the
 rolling cap (RF01, `study_clay_rolling`: denser at 100 kPa on every seed, but denser at 1 kPa
