@@ -63,6 +63,11 @@ EXPERIMENTS = (
         "study_clay_bonded_stage2.sh",
         "study_clay_bonded_stage2.md",
     ),
+    (
+        "study_clay_bonded_stage2_overlap_cells.csv",
+        "study_clay_bonded_stage2_overlap.sh",
+        "study_clay_bonded_stage2.md",
+    ),
     ("study_clay_pstar_cells.csv", "study_clay_pstar.sh", "study_clay_pstar.md"),
     ("study_clay_floor_cells.csv", "study_clay_floor.sh", "study_clay_floor.md"),
     ("study_clay_smooth_cells.csv", "study_clay_smooth.sh", "study_clay_smooth.md"),
@@ -114,7 +119,8 @@ paths): E_v/p at B 101, λ* 0.157, C − B +0.62, K0 0.64, overlaps 1.3 % of d. 
 the finding on three seeds (C − B +0.49 ± 0.30) and misses λ* (0.159 ± 0.019, below the rigid
 scene's on the same gases), and its overlaps (1.3 % of d) miss the bar; contacts twice as
 stiff with the bonds kept (KB300S, `study_clay_bonded_overlap`) meet the overlap bar at 300 rods
-(≤ 0.80 % of d) with λ* 0.169 ± 0.022. Since 2026-12-05 the gap in λ* is split decade by
+(≤ 0.80 % of d) with λ* 0.169 ± 0.022, and at 1520 rods on one seed (KS1520: 0.58 % of d, C − B
++0.67, K0 0.64). Since 2026-12-05 the gap in λ* is split decade by
 decade (`benchmarks/local_compressibility.py`): every gel is stiff, and plastic (κ = p/K ≈
 0.01), in the first decade after A. A window at a higher reduced pressure (K280,
 `study_clay_pstar`) lowers λ*; the attraction-free floor (NA, `study_clay_floor`) is no cap;
