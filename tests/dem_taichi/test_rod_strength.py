@@ -12,67 +12,34 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from dem_taichi.engine.parameters import resolve_scene
-from dem_taichi.engine.simulation import CellControl, Simulation
-from dem_taichi.kernels import layout
+from dem_taichi.engine.simulation import Simulation
 from dem_taichi.physics import forcelaw
 from dem_taichi.scene.config import SceneError, scene_from_toml
-from dem_taichi.scene.geometry import GasState, generate_gas, rod_strengths
+from dem_taichi.scene.geometry import generate_gas, rod_strengths
 
-L_CELL = 12.0
-
-TWO_RODS = """
-[scene]
-seed = {seed}
-[particles]
-n_rods = 2
-n_spheres = 3
-[contact]
-k_n = 1.0e5
-gamma_n = 0.0
-friction = false
-[long_range]
-enabled = true
-f_max_edge = 10.0
-f_max_inner = 30.0
-k_a_edge = 50.0
-k_a_inner = 150.0
-strength_spread = {spread}
-[integration]
-local_damping = 0.0
-skin = 0.2
-"""
+from .test_two_body import DENSE_NETWORK, facing_rods, jammed_network, rods_scene
 
 
-def facing(gap: float, face: str) -> tuple[GasState, int]:
-    """Rod A along x; its edge disc faces rod B's edge disc (B collinear) or middle disc (B
-    vertical) at surface gap ``gap``. Returns the gas and B's species facing A's edge disc."""
-    x0 = 3.0
-    xb = x0 + 2.0 + gap
-    if face == "edge":
-        positions, angles, species = [[x0, 5.0], [xb + 1.0, 5.0]], [0.0, 0.0], 0
-    else:
-        positions, angles, species = [[x0, 5.0], [xb, 5.0]], [0.0, math.pi / 2], 1
-    gas = GasState(
-        np.array([L_CELL, L_CELL]), np.array(positions, dtype=float), np.array(angles),
-        np.zeros((2, 2)), np.zeros(2),
-    )  # fmt: skip
-    return gas, species
+def two_rods(seed: int, spread: float):
+    """The two 3-disc rods of test_two_body.py (acidic, F_max 10/30, k_a 50/150, no friction),
+    with ``[scene] seed`` and ``[long_range] strength_spread``."""
+    return rods_scene("acidic").replace(
+        scene={"seed": seed}, long_range={"strength_spread": spread}
+    )
 
 
 def test_no_draw_when_the_rods_are_alike():
-    assert rod_strengths(scene_from_toml(TWO_RODS.format(seed=1, spread=0.0))) is None
+    assert rod_strengths(two_rods(1, 0.0)) is None
     off = scene_from_toml("[long_range]\nenabled = false\nstrength_spread = 0.8")
     assert rod_strengths(off) is None
     assert not resolve_scene(off).physics.strength
-    alike = scene_from_toml(TWO_RODS.format(seed=1, spread=0.0))
+    alike = two_rods(1, 0.0)
     assert not resolve_scene(alike).physics.strength
-    assert resolve_scene(scene_from_toml(TWO_RODS.format(seed=1, spread=0.5))).physics.strength
+    assert resolve_scene(two_rods(1, 0.5)).physics.strength
 
 
 @pytest.mark.parametrize("sigma", [0.3, 1.0])
@@ -102,11 +69,11 @@ def test_the_gas_does_not_depend_on_the_spread():
 @pytest.mark.parametrize("face", ["edge", "inner"])
 @pytest.mark.parametrize("gap", [-0.01, 0.05, 0.15, 0.2 + 1e-6])
 def test_two_rods_feel_the_harmonic_mean_of_their_strengths(face, gap):
-    gas, sj = facing(gap, face)
+    gas, (_, sj) = facing_rods(gap, face)  # A's edge disc (species 2) faces B's species sj
     f_max = np.array([10.0, 30.0, 10.0])
     k_a = np.array([50.0, 150.0, 50.0])
     charge = np.array([1, -1, 1])
-    spread = Simulation(scene_from_toml(TWO_RODS.format(seed=4, spread=1.0)), initial=gas)
+    spread = Simulation(two_rods(4, 1.0), initial=gas)
     s = spread.rod_strength
     assert s is not None and abs(s[0] - s[1]) > 0.1  # two different strengths
     m = 2 * s[0] * s[1] / (s[0] + s[1])
@@ -123,46 +90,17 @@ def test_two_rods_feel_the_harmonic_mean_of_their_strengths(face, gap):
         assert force_a[0] == 0.0
 
 
-def network_scene(rod_model: str, spread: float, execution: str = "serial") -> str:
-    return f"""
-[scene]
-seed = 5
-[particles]
-n_rods = 30
-n_spheres = 5
-initial_area_fraction = 0.2
-rod_model = "{rod_model}"
-[contact]
-e_n = 0.5
-[long_range]
-enabled = true
-strength_spread = {spread}
-[integration]
-steps_per_call = 100
-execution = "{execution}"
-[control]
-inertial_number_max = 0.01
-"""
-
-
-def jammed(scene_text: str) -> Simulation:
-    sim = Simulation(scene_from_toml(scene_text))
-    sim.run(4000, control=CellControl.strain_rate(0.1), output_every=10**9)
-    state = sim.get_state()
-    state["velocity"][:] = 0.0
-    state["angular_velocity"][:] = 0.0
-    state["params"][[layout.P_RATE_X, layout.P_RATE_Y]] = 0.0  # a static network
-    sim.set_state(state)
-    sim.recompute_forces()
-    return sim
-
-
 @pytest.mark.parametrize(
     "rod_model, execution",
     [("rigid", "serial"), ("bonded", "serial"), ("rigid", "parallel"), ("bonded", "gather")],
 )
 def test_engine_matches_the_numpy_reference_with_a_spread(rod_model, execution):
-    sim = jammed(network_scene(rod_model, 0.8, execution))
+    scene = scene_from_toml(DENSE_NETWORK).replace(
+        particles={"rod_model": rod_model},
+        long_range={"strength_spread": 0.8},
+        integration={"execution": execution},
+    )
+    sim = jammed_network(scene)
     snap = sim.snapshot()
     assert snap.rod_strength is not None and snap.rod_strength.shape == (30,)
     assert sim.measure()["n_long_range_pairs"] > 10
@@ -183,14 +121,10 @@ def test_engine_matches_the_numpy_reference_with_a_spread(rod_model, execution):
 def test_a_spread_of_zero_allocates_and_reads_nothing():
     """σ = 0: the strengths' array holds one unused entry and the kernels compile without the
     strength branch (the bitwise smoke references of test_protocol.py run this default)."""
-    sim = Simulation(
-        scene_from_toml(TWO_RODS.format(seed=4, spread=0.0)), initial=facing(0.1, "edge")[0]
-    )
+    sim = Simulation(two_rods(4, 0.0), initial=facing_rods(0.1, "edge")[0])
     assert sim.rod_strength is None and not sim.physics.strength
     assert sim.a["rod_strength"].shape == (1,)
-    spread = Simulation(
-        scene_from_toml(TWO_RODS.format(seed=4, spread=0.5)), initial=facing(0.1, "edge")[0]
-    )
+    spread = Simulation(two_rods(4, 0.5), initial=facing_rods(0.1, "edge")[0])
     assert spread.physics.strength and spread.a["rod_strength"].shape == (2,)
     np.testing.assert_allclose(spread.a["rod_strength"].to_numpy(), spread.rod_strength)
 

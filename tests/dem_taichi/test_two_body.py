@@ -287,11 +287,9 @@ def test_intra_rod_pairs_never_interact():
     assert np.all(state["force"] == 0.0)
 
 
-def test_engine_forces_match_the_numpy_reference_on_a_dense_network():
-    """Forces and torques of a jammed acidic packing (with friction springs and periodic
-    images) agree with dem_taichi.physics.forcelaw evaluated on the engine's snapshot."""
-    scene = scene_from_toml(
-        """
+#: a jammed acidic packing (30 rods of 5 discs, friction springs, periodic images): see
+#: :func:`jammed_network`
+DENSE_NETWORK = """
 [scene]
 seed = 5
 [particles]
@@ -307,7 +305,11 @@ steps_per_call = 100
 [control]
 inertial_number_max = 0.01
 """
-    )
+
+
+def jammed_network(scene) -> Simulation:
+    """``scene`` compressed 4000 steps at a strain rate of 0.1 into a jammed packing, then made
+    a static network (velocities and the affine flow zeroed, the forces recomputed)."""
     from dem_taichi.engine.simulation import CellControl
 
     sim = Simulation(scene)
@@ -318,6 +320,13 @@ inertial_number_max = 0.01
     state["params"][[layout.P_RATE_X, layout.P_RATE_Y]] = 0.0  # no affine flow: a static network
     sim.set_state(state)
     sim.recompute_forces()
+    return sim
+
+
+def test_engine_forces_match_the_numpy_reference_on_a_dense_network():
+    """Forces and torques of a jammed acidic packing (with friction springs and periodic
+    images) agree with dem_taichi.physics.forcelaw evaluated on the engine's snapshot."""
+    sim = jammed_network(scene_from_toml(DENSE_NETWORK))
     snap = sim.snapshot()
     assert snap.n_pairs > 20
     assert sim.measure()["n_contacts"] > 5
