@@ -26,9 +26,7 @@ t). Writes ``<out>.md``, ``<out>.csv`` (per run) and ``<out>.png`` (the figure).
 from __future__ import annotations
 
 import argparse
-import csv
 import math
-import re
 import sys
 from pathlib import Path
 
@@ -36,9 +34,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from local_compressibility import isotropic_path_kpa, run_probes  # noqa: E402
+from local_compressibility import (  # noqa: E402
+    cell_and_seed,
+    isotropic_path_kpa,
+    run_probes,
+    write_outputs,
+)
+from local_compressibility import markdown as runs_markdown  # noqa: E402
 
-from dem_taichi.analysis.findings import mean_interval  # noqa: E402
 from dem_taichi.analysis.mapped_window import specific_volume_at  # noqa: E402
 
 #: The window's ends (kPa).
@@ -70,14 +73,12 @@ def ends(p_kpa, v) -> tuple[float, float, float]:
 
 def run_row(folder: Path) -> dict:
     """The two ends of one run folder (``<cell>_s<seed>``)."""
-    named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
-    if named is None:
-        raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
+    cell, seed = cell_and_seed(folder)
     p, v, scale = isotropic_path_kpa(folder, run_probes(folder))
     v_1, v_100, chord = ends(p, v)
     return {
-        "cell": named.group(1),
-        "seed": int(named.group(2)),
+        "cell": cell,
+        "seed": seed,
         "scale": scale,
         "p_A_kpa": float(p[0]),
         "v_A": float(v[0]),
@@ -87,28 +88,9 @@ def run_row(folder: Path) -> dict:
     }
 
 
-def _fmt(mean: float, half: float, n: int) -> str:
-    if n == 0 or not math.isfinite(mean):
-        return "—"
-    return f"{mean:.3g}" if not math.isfinite(half) else f"{mean:.3g} ± {half:.2g}"
-
-
 def markdown(rows: list[dict]) -> str:
-    """The per-cell table (mean ± 95 %) and the per-run table."""
-    cells: dict[str, list[dict]] = {}
-    for row in rows:
-        cells.setdefault(row["cell"], []).append(row)
-    head = "| cell (seeds) | " + " | ".join(label for _, label in COLUMNS) + " |"
-    lines = [head, "|---" * (len(COLUMNS) + 1) + "|"]
-    for cell, members in cells.items():
-        seeds = ",".join(str(r["seed"]) for r in members)
-        values = [_fmt(*mean_interval([r[key] for r in members])) for key, _ in COLUMNS]
-        lines.append(f"| {cell} ({seeds}) | " + " | ".join(values) + " |")
-    lines += ["", head.replace("cell (seeds)", "run"), "|---" * (len(COLUMNS) + 1) + "|"]
-    for row in rows:
-        values = [f"{row[key]:.3g}" if math.isfinite(row[key]) else "—" for key, _ in COLUMNS]
-        lines.append(f"| {row['cell']}_s{row['seed']} | " + " | ".join(values) + " |")
-    return "\n".join(lines) + "\n"
+    """The per-cell table (mean ± 95 %) and the per-run table over :data:`COLUMNS`."""
+    return runs_markdown(rows, list(COLUMNS))
 
 
 def figure(rows: list[dict], path: Path) -> None:
@@ -162,15 +144,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=Path("compression_ends"))
     args = parser.parse_args(argv)
     rows = [run_row(folder) for folder in args.runs]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.with_suffix(".md").write_text(markdown(rows))
-    keys = ["cell", "seed", "scale"] + [key for key, _ in COLUMNS]
-    with args.out.with_suffix(".csv").open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows(rows)
-    figure(rows, args.out.with_suffix(".png"))
-    print(markdown(rows))
+    write_outputs(rows, args.out, list(COLUMNS), figure)
 
 
 if __name__ == "__main__":

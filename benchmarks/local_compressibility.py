@@ -34,6 +34,7 @@ import csv
 import json
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -125,15 +126,21 @@ def segment_elastic_slopes(p_kpa, kappa, edges=EDGES_KPA) -> list[float]:
     return slopes
 
 
-def run_row(folder: Path, elastic: bool = False) -> dict:
-    """The λ profile of one run folder (``<cell>_s<seed>``), with the arrays for the figure;
-    with ``elastic``, the segments' κ too (:func:`segment_elastic_slopes`)."""
+def cell_and_seed(folder: Path) -> tuple[str, int]:
+    """(cell, seed) of a run folder named ``<cell>_s<seed>``; ValueError for another name."""
     named = re.fullmatch(r"(.+)_s(\d+)", folder.name)
     if named is None:
         raise ValueError(f"{folder}: not a <cell>_s<seed> run folder")
+    return named.group(1), int(named.group(2))
+
+
+def run_row(folder: Path, elastic: bool = False) -> dict:
+    """The λ profile of one run folder (``<cell>_s<seed>``), with the arrays for the figure;
+    with ``elastic``, the segments' κ too (:func:`segment_elastic_slopes`)."""
+    cell, seed = cell_and_seed(folder)
     probes = run_probes(folder)
     p, v, scale = isotropic_path_kpa(folder, probes)
-    row: dict = {"cell": named.group(1), "seed": int(named.group(2)), "scale": scale}
+    row: dict = {"cell": cell, "seed": seed, "scale": scale}
     row["p_A_kpa"], row["v_A"] = float(p[0]), float(v[0])
     for (lo, hi), slope in zip(_segments(), segment_slopes(p, v), strict=True):
         row[f"seg_{lo:g}_{hi:g}"] = slope
@@ -164,14 +171,14 @@ def _elastic(rows: list[dict]) -> bool:
     return any(key.startswith("kappa_") for row in rows for key in row)
 
 
-def _cell_rows(rows: list[dict]) -> list[dict]:
+def _cell_rows(rows: list[dict], cols: list[tuple[str, str]]) -> list[dict]:
     cells: dict[str, list[dict]] = {}
     for row in rows:
         cells.setdefault(row["cell"], []).append(row)
     out = []
     for cell, members in cells.items():
         entry: dict = {"cell": cell, "seeds": ",".join(str(r["seed"]) for r in members)}
-        for key, _ in _columns(_elastic(rows)):
+        for key, _ in cols:
             entry[key] = mean_interval([r[key] for r in members])
         out.append(entry)
     return out
@@ -183,12 +190,13 @@ def _fmt(mean: float, half: float, n: int) -> str:
     return f"{mean:.3g}" if not math.isfinite(half) else f"{mean:.3g} ± {half:.2g}"
 
 
-def markdown(rows: list[dict]) -> str:
-    """The per-cell table (mean ± 95 %) and the per-run table."""
-    cols = _columns(_elastic(rows))
+def markdown(rows: list[dict], cols: list[tuple[str, str]] | None = None) -> str:
+    """The per-cell table (mean ± 95 %) and the per-run table over ``cols`` ((key, label);
+    default: this script's columns)."""
+    cols = _columns(_elastic(rows)) if cols is None else cols
     lines = ["| cell (seeds) | " + " | ".join(label for _, label in cols) + " |"]
     lines.append("|---" * (len(cols) + 1) + "|")
-    for entry in _cell_rows(rows):
+    for entry in _cell_rows(rows, cols):
         cells = [_fmt(*entry[key]) for key, _ in cols]
         lines.append(f"| {entry['cell']} ({entry['seeds']}) | " + " | ".join(cells) + " |")
     lines += ["", "| run | " + " | ".join(label for _, label in cols) + " |"]
@@ -233,15 +241,26 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = parser.parse_args(argv)
     rows = [run_row(folder, args.elastic) for folder in args.runs]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.with_suffix(".md").write_text(markdown(rows))
-    keys = ["cell", "seed", "scale"] + [key for key, _ in _columns(args.elastic)]
-    with args.out.with_suffix(".csv").open("w", newline="") as handle:
+    write_outputs(rows, args.out, _columns(args.elastic), figure)
+
+
+def write_outputs(
+    rows: list[dict],
+    out: Path,
+    cols: list[tuple[str, str]],
+    draw: Callable[[list[dict], Path], None],
+) -> None:
+    """``<out>.md`` (:func:`markdown` over ``cols``), ``<out>.csv`` (per run: cell, seed, scale
+    and ``cols``) and ``<out>.png`` (``draw(rows, path)``); prints the tables."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".md").write_text(markdown(rows, cols))
+    keys = ["cell", "seed", "scale"] + [key for key, _ in cols]
+    with out.with_suffix(".csv").open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
-    figure(rows, args.out.with_suffix(".png"))
-    print(markdown(rows))
+    draw(rows, out.with_suffix(".png"))
+    print(markdown(rows, cols))
 
 
 if __name__ == "__main__":
