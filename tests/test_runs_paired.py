@@ -1,5 +1,6 @@
 """benchmarks/runs_paired.py: paired differences by seed, one cell of a file that holds several,
-and the decade-by-decade tables of local_compressibility.py as well as study_clay_pilots.py's."""
+and the tables of local_compressibility.py and compression_ends.py as well as
+study_clay_pilots.py's."""
 
 from __future__ import annotations
 
@@ -36,6 +37,14 @@ def test_one_cell_of_a_file_with_several_is_paired_by_seed(tmp_path):
     assert "| λ* 1–200 kPa | 0.2, 0.1 | 0.4, 0.3 | +0.2 ± " in text
 
 
+def _cells_a_to_b(script, path: Path) -> tuple[list[str], str]:
+    """The columns runs_paired.py reads from ``path`` and the paired table of its cell B
+    against its cell A."""
+    columns = script.columns_of(path)
+    table = script.table(script.read_runs(path, "A"), script.read_runs(path, "B"), columns)
+    return [key for key, _label, _digits in columns], "\n".join(table)
+
+
 def test_a_local_compressibility_table_is_read_with_its_own_columns(tmp_path):
     script = load_script("benchmarks/runs_paired.py")
     header = ["cell", "seed", "scale", "p_A_kpa", "v_A", "seg_1_3", "kappa_1_3"]
@@ -44,13 +53,8 @@ def test_a_local_compressibility_table_is_read_with_its_own_columns(tmp_path):
         header,
         [["A", 11, 1.0, 0.5, 6.0, 0.10, 0.01], ["B", 11, 1.0, 0.6, 6.2, 0.16, 0.02]],
     )
-    keys = [key for key, _label, _digits in script.columns_of(path)]
+    keys, text = _cells_a_to_b(script, path)
     assert "seg_1_3" in keys and "kappa_1_3" in keys and "lambda_window" not in keys
-    text = "\n".join(
-        script.table(
-            script.read_runs(path, "A"), script.read_runs(path, "B"), script.columns_of(path)
-        )
-    )
     assert "| λ 1–3 | 0.1 | 0.16 | +0.06 |" in text
 
 
@@ -62,13 +66,8 @@ def test_a_compression_ends_table_is_read_with_its_own_columns(tmp_path):
         header,
         [["A", 11, 1.0, 0.5, 6.0, 5.8, 2.9, 0.15], ["B", 11, 1.0, 0.6, 6.2, 5.6, 2.4, 0.18]],
     )
-    keys = [key for key, _label, _digits in script.columns_of(path)]
+    keys, text = _cells_a_to_b(script, path)
     assert keys == ["p_A_kpa", "v_A", "v_1", "v_100", "chord"]
-    text = "\n".join(
-        script.table(
-            script.read_runs(path, "A"), script.read_runs(path, "B"), script.columns_of(path)
-        )
-    )
     assert "| v at 100 kPa | 2.9 | 2.4 | -0.5 |" in text
 
 
