@@ -8,7 +8,7 @@ import shutil
 
 import pytest
 
-from .test_protocol import REFERENCE, _assert_bitwise_equal, _outputs, smoke_protocol_scene
+from .test_protocol import REFERENCE_SECANT, _assert_bitwise_equal, _outputs, smoke_protocol_scene
 from .test_protocol_resume import _release_runs
 
 
@@ -72,7 +72,7 @@ def test_a_run_stopped_at_every_point_equals_the_run_never_stopped_bitwise(
 ):
     out, _, result, _ = stopped_at_every_point
     assert list(result.states) == ["A", "B", "C", "B'", "R1_end"]
-    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE_SECANT)
     assert not list((out / "resume").glob("branch_*_point.npz"))  # spent once saved
 
 
@@ -92,7 +92,7 @@ def test_worker_processes_go_on_from_a_point(stopped_at_every_point):
     )
     result = run_protocol(smoke_protocol_scene(), copy, resume=True, workers=2)
     _release_runs()
-    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE_SECANT)
     assert not (copy / "resume" / "branch_1_point.npz").exists()
 
 

@@ -10,7 +10,7 @@ import pytest
 from dem_taichi.io.run_directory import RunDirectoryError
 from dem_taichi.scene.config import load_scene, scene_to_toml
 
-from .test_protocol import REFERENCE, _assert_bitwise_equal, _outputs, smoke_protocol_scene
+from .test_protocol import REFERENCE_SECANT, _assert_bitwise_equal, _outputs, smoke_protocol_scene
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +68,7 @@ def test_resumed_run_equals_the_uninterrupted_run_bitwise(interrupted):
     _release_runs()
     assert (interrupted / "summary.json").exists()
     assert list(result.states) == ["A", "B", "C", "B'", "R1_end"]
-    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE_SECANT)
 
 
 def test_resume_refuses_another_scene_and_a_directory_without_a_run(tmp_path, interrupted):
@@ -130,7 +130,7 @@ def test_a_moved_run_folder_resumes_in_worker_processes(interrupted, tmp_path):
     assert (moved / "resume" / "branch_2.npz").exists()
     assert result.files["state_A"] == str(moved / "state_A.npz")
     assert all(str(interrupted) not in path for path in result.files.values())
-    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE)
+    _assert_bitwise_equal(_outputs(result, history=True), REFERENCE_SECANT)
 
 
 # The two command-line signal tests run real protocol processes (~50 s each): `make test-slow`
