@@ -13,7 +13,10 @@ M = N n_s, ``spheres`` the discs per body (n_s, or 1 for bonded rods), ``species
 places in a rod, for the charge pattern), ``capacity`` K (neighbour-list entries per disc, grown
 on overflow), ``rolling_discs`` M with rolling resistance at the contacts, else 1 (the rolling
 springs ψ, one per list entry, cost no memory where the scene has none), ``strength_rods`` N
-with a spread of the rods' strengths (``[long_range] strength_spread``), else 1, ``cells`` the
+with a spread of the rods' strengths (``[long_range] strength_spread``), else 1,
+``partner_rods`` N (the rods, not the bodies) with ``[long_range] attraction_pairs =
+"bonded_at_A"``, else 1 (row r: the number of rod r's partners, -1 before state A, then the
+partners: :mod:`dem_taichi.kernels.layout`), ``cells`` the
 side of the cell-list grid; integers are fixed sizes (the small arrays of
 :mod:`dem_taichi.kernels.layout`). ``bond_intact`` (bonded rods: 1 while the bond of body b
 to b + 1 holds) is allocated for rigid rods too, never read there. ``fire`` holds the FIRE
@@ -116,6 +119,13 @@ DEVICE_ARRAYS: tuple[DeviceArray, ...] = (
     DeviceArray("flags", _I, (L.N_FLAGS,), "state", "flags"),
     DeviceArray("params", _R, (L.N_PARAMS,), "state", "params"),
     DeviceArray("bond_intact", _I, ("rods",), "state", "bond_intact"),
+    DeviceArray(
+        "attraction_partners",
+        _I,
+        ("partner_rods", L.PARTNER_COLUMNS),
+        "state",
+        "attraction_partners",
+    ),  # fmt: skip
     DeviceArray("fire", _R, (L.N_FIRE,), "work"),
     DeviceArray("measures", _R, (L.N_MEASURES,), "output"),
     DeviceArray("block_sums", _R, ("measure_blocks", L.N_MEASURES), "work"),

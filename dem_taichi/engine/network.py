@@ -73,6 +73,7 @@ def network_snapshot(
     bonds=None,
     rolling_springs: np.ndarray | None = None,
     rod_strength: np.ndarray | None = None,
+    attraction_partners: np.ndarray | None = None,
 ) -> NetworkSnapshot:
     """The snapshot of the interacting ``entries`` (:func:`interacting_entries`): disc positions
     ``disc_x`` (M, 2), list springs ξ (M, K), cell ``lengths``, wrapped centroids and angles,
@@ -81,7 +82,8 @@ def network_snapshot(
     ``bonds`` (a :class:`dem_taichi.physics.snapshot.BondNetwork`)
     for bonded rods, whose bodies are discs (``geometry`` of one disc, centroids contiguous along
     each rod); ``rolling_springs`` ψ (M, K) with rolling resistance (κ_r and the cap from
-    ``params``); ``rod_strength`` (N,) the rods' long-range strengths (None: alike)."""
+    ``params``); ``rod_strength`` (N,) the rods' long-range strengths (None: alike);
+    ``attraction_partners`` the rods' partner table (None: every pair attracts)."""
     i, k, packed, bits = entries
     j = packed // L.IMAGE_CODES
     code = packed % L.IMAGE_CODES
@@ -129,4 +131,5 @@ def network_snapshot(
         rolling_stiffness=params.rolling_stiffness if psi is not None else 0.0,
         rolling_cap=params.rolling_cap if psi is not None else 0.0,
         rod_strength=rod_strength,
+        attraction_partners=attraction_partners,
     )

@@ -55,7 +55,9 @@ class Physics:
     discs per rod n_s (species by the place in the rod; for rigid rods also the discs per body);
     ``rolling``: rolling resistance at inter-rod contacts (:mod:`dem_taichi.physics.rolling`);
     ``strength``: the rods' long-range strengths differ (``[long_range] strength_spread`` > 0:
-    :func:`dem_taichi.scene.geometry.rod_strengths`).
+    :func:`dem_taichi.scene.geometry.rod_strengths`); ``partners``: from state A on, attraction
+    only between rods that attracted each other at A (``[long_range] attraction_pairs =
+    "bonded_at_A"``: :meth:`dem_taichi.engine.simulation.Simulation.freeze_attraction`).
     """
 
     friction: bool
@@ -65,6 +67,7 @@ class Physics:
     chain: int = 1
     rolling: bool = False
     strength: bool = False
+    partners: bool = False
 
 
 def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics:
@@ -80,6 +83,7 @@ def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics
         chain=n_spheres,
         rolling=scene.rolling_parameters.enabled,
         strength=long_range and scene.long_range.strength_spread > 0.0,
+        partners=long_range and scene.long_range.attraction_pairs == "bonded_at_A",
     )
 
 

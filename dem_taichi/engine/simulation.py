@@ -88,6 +88,8 @@ from dem_taichi.engine.simulation_state import SimulationState, checkpoint_meta,
 from dem_taichi.engine.simulation_views import SimulationViews
 from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
+from dem_taichi.physics.attraction import NOT_SET, partner_pairs, partner_table, unset_table
+from dem_taichi.physics.forcelaw import attracting_rod_pairs
 from dem_taichi.physics.snapshot import NetworkSnapshot
 from dem_taichi.scene.config import Scene, load_scene
 from dem_taichi.scene.geometry import (
@@ -226,6 +228,7 @@ class Simulation:
         self._sizes["rolling_discs"] = m if self.physics.rolling else 1
         self._sizes["species"] = self.geometry.n_spheres
         self._sizes["strength_rods"] = self.n_rods if self.physics.strength else 1
+        self._sizes["partner_rods"] = self.n_rods if self.physics.partners else 1
         self._sizes["cells"] = cells_axis
         # the parallel measure's block rows (kernels.measures.measure_sums_blocked); one unused
         # row on the serial path
@@ -239,6 +242,8 @@ class Simulation:
         self.a["pair_table"].from_numpy(self._pair_table.astype(self._real))
         strength = self.rod_strength if self.rod_strength is not None else np.ones(1)
         self.a["rod_strength"].from_numpy(strength.astype(self._real))
+        partners = unset_table(self._sizes["partner_rods"], L.PARTNER_COLUMNS)
+        self.a["attraction_partners"].from_numpy(partners)
         for name in ("nbr_count", "old_count"):
             self.a[name].from_numpy(np.zeros(m, dtype=np.int32))
         self.a["nbr"].from_numpy(np.zeros((m, self.capacity), dtype=np.int32))
@@ -423,6 +428,30 @@ class Simulation:
     def snapshot(self) -> NetworkSnapshot:
         """The interacting network (:class:`dem_taichi.physics.snapshot.NetworkSnapshot`)."""
         return self.views.snapshot()
+
+    def freeze_attraction(self) -> np.ndarray:
+        """From now on, attraction only between the rods that attract each other now
+        (``[long_range] attraction_pairs = "bonded_at_A"``; the protocol calls it at state A):
+        the partner table of :mod:`dem_taichi.physics.attraction` from the rod pairs of
+        :func:`dem_taichi.physics.forcelaw.attracting_rod_pairs` on the current network, set
+        once (partners already set are kept: a second call changes nothing). Forces are
+        unchanged at the state it is called on. Returns the partner rod pairs (P, 2).
+
+        Raises ValueError for a scene without the option, or a rod with more partners than
+        :data:`dem_taichi.kernels.layout.PARTNER_CAPACITY`."""
+        if not self.physics.partners:
+            raise ValueError(
+                "freeze_attraction needs [long_range] attraction_pairs = 'bonded_at_A' (and "
+                "charged discs with the long-range law on)"
+            )
+        table = self.a["attraction_partners"].to_numpy()
+        if np.any(table[:, 0] != NOT_SET):
+            return partner_pairs(table)
+        pairs = attracting_rod_pairs(self.snapshot())
+        self.a["attraction_partners"].from_numpy(
+            partner_table(pairs, self.n_rods, L.PARTNER_COLUMNS)
+        )
+        return pairs
 
     def _launch(self, kernel, **scalars) -> None:
         """Call ``kernel`` with its scalars and the device arrays its parameters name

@@ -21,7 +21,12 @@ import numpy as np
 
 from dem_taichi.engine.device_arrays import STATE_ARRAYS
 from dem_taichi.engine.parameters import EngineParameters, Physics
-from dem_taichi.engine.state import convert_neighbour_list, fit_rolling_spring, upgrade_state
+from dem_taichi.engine.state import (
+    convert_neighbour_list,
+    fit_attraction_partners,
+    fit_rolling_spring,
+    upgrade_state,
+)
 from dem_taichi.kernels import layout as L
 from dem_taichi.scene.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.scene.geometry import GasState, RodGeometry
@@ -107,6 +112,7 @@ class SimulationState:
         state = upgrade_state(state, n, self.a["params"].to_numpy())
         state = convert_neighbour_list(state, self.full_list, capacity_now)
         state = fit_rolling_spring(state, self.physics.rolling)
+        state = fit_attraction_partners(state, self.n_rods if self.physics.partners else 1)
         capacity = state["neighbours"].shape[1]
         if capacity != capacity_now:
             self._grow(capacity)

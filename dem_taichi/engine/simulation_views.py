@@ -287,4 +287,7 @@ class SimulationViews:
                 self.a["nbr_psi"].to_numpy().astype(float) if self.physics.rolling else None
             ),
             rod_strength=None if self.rod_strength is None else self.rod_strength.copy(),
+            attraction_partners=(
+                self.a["attraction_partners"].to_numpy() if self.physics.partners else None
+            ),
         )

@@ -25,6 +25,9 @@ cell               (8,) real       L_x, L_y, lengths at the last build, time, tr
 flags              (12,) int32     kernel flags (see kernels/layout.py)
 params             (31,) real      runtime parameters incl. the current strain rates
 bond_intact        (N,) int32      bonded rods: 1 while the bond b—b+1 holds (rigid: unused)
+attraction_        (R, 32) int32   the rods' attraction partners, row [n, partners...], n = -1
+partners                           until state A (dem_taichi.physics.attraction); R = the rods
+                                   with [long_range] attraction_pairs = "bonded_at_A", else 1
 reference_lengths  (2,) float64    L0 of the logarithmic strain
 step               () int64        steps done since the start of the run
 full_list          () bool         neighbour list holds both directions (``gather`` execution)
@@ -43,6 +46,7 @@ import numpy as np
 
 from dem_taichi.engine.device_arrays import HOST_STATE_KEYS, STATE_ARRAYS
 from dem_taichi.kernels import layout as L
+from dem_taichi.physics.attraction import NOT_SET, unset_table
 
 #: Keys of the state dict: the state arrays of
 # :data:`dem_taichi.engine.device_arrays.DEVICE_ARRAYS`,
@@ -134,6 +138,29 @@ def fit_rolling_spring(state: dict[str, np.ndarray], rolling: bool) -> dict[str,
         )
     state = dict(state)
     state["rolling_spring"] = np.zeros((rows, entries.shape[1]), dtype=state["angle"].dtype)
+    return state
+
+
+def fit_attraction_partners(state: dict[str, np.ndarray], rows: int) -> dict[str, np.ndarray]:
+    """The state with its attraction-partner table in the shape of a simulation with ``rows``
+    rows (the rods with ``[long_range] attraction_pairs = "bonded_at_A"``, else 1): the state's
+    own when it fits, else a table whose partners are not set (states written before the option,
+    or by a simulation without it).
+
+    Raises ValueError for a state whose partners are set (it went past state A with the option)
+    restored into a simulation of another shape (they would be lost or misread)."""
+    table = state.get("attraction_partners")
+    if table is not None and table.shape == (rows, L.PARTNER_COLUMNS):
+        return state
+    if table is not None and np.any(table[:, 0] != NOT_SET):
+        raise ValueError(
+            "state carries the attraction partners set at state A ([long_range] "
+            "attraction_pairs = 'bonded_at_A'), this simulation has "
+            + ("none" if rows == 1 else f"{rows} rods")
+            + ": restore it into a scene with the same rods and attraction_pairs"
+        )
+    state = dict(state)
+    state["attraction_partners"] = unset_table(rows, L.PARTNER_COLUMNS)
     return state
 
 

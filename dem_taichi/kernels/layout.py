@@ -123,6 +123,12 @@ N_FLAGS = 12
 BLOWUP_NONFINITE = 1
 BLOWUP_OVERLAP = 2
 
+# attraction partners ([long_range] attraction_pairs = "bonded_at_A") -------------------------
+# row r of ``attraction_partners``: [n, partner rods 1..n, unused]; n = -1 until state A
+# (every opposite-charge pair attracts), then the rods that rod r attracted at A
+PARTNER_CAPACITY = 31  # partner rods per rod
+PARTNER_COLUMNS = 1 + PARTNER_CAPACITY
+
 # fire (the FIRE minimiser, dem_taichi.kernels.fire; set by the engine at each minimising call) --
 FIRE_DT_MAX = 0  # Δt_max (absolute: factor × the scene's Δt)
 FIRE_DT_MIN = 1  # Δt_min (absolute): Δt is not decreased below it

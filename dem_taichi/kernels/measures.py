@@ -91,7 +91,8 @@ def add_rod(r, vel: T, omega: T, force: T, torque: T, params: T, sums: T, row):
 def add_disc_entries(
     ns: T, full: T, phys: T, i, vel: T, omega: T, disc_x: T, disc_off: T, offsets: T, nbr: T,
     nbr_xi: T, nbr_psi: T, nbr_count: T, charge: T, pair_table: T, rod_strength: T,
-    bond_intact: T, cell: T, params: T, rod_contacts: T, pair_out: T, pair_flags: T, sums: T, row,
+    attraction_partners: T, bond_intact: T, cell: T, params: T, rod_contacts: T, pair_out: T,
+    pair_flags: T, sums: T, row,
 ):  # fmt: skip
     """Disc ``i``'s list entries in order: stress, energies and counts into ``sums[row]``, the
     contacts into ``rod_contacts`` (both rods), each entry's forces and bits into ``pair_out``
@@ -107,7 +108,8 @@ def add_disc_entries(
         if listed:
             fx, fy, tau_i, tau_j, j, active, fc, ft, delta, uc, ul, la, bx, by = pair_interaction(
                 ns, phys, False, i, k, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi,
-                nbr_psi, charge, pair_table, rod_strength, bond_intact, cell, params,
+                nbr_psi, charge, pair_table, rod_strength, attraction_partners, bond_intact, cell,
+                params,
             )  # fmt: skip
             bits = pair_bits(phys, active, delta, fc, ft, la, params)
             if active == 1:
@@ -176,6 +178,7 @@ def measure_sums(
     charge: nd1,
     pair_table: nd3,
     rod_strength: nd1,
+    attraction_partners: nd2,
     bond_intact: nd1,
     cell: nd1,
     params: nd1,
@@ -206,8 +209,8 @@ def measure_sums(
         for i in range(n_discs):
             add_disc_entries(
                 ns, full, phys, i, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi, nbr_psi,
-                nbr_count, charge, pair_table, rod_strength, bond_intact, cell, params,
-                rod_contacts, pair_out, pair_flags, block_sums, 0,
+                nbr_count, charge, pair_table, rod_strength, attraction_partners, bond_intact, cell,
+                params, rod_contacts, pair_out, pair_flags, block_sums, 0,
             )  # fmt: skip
         if ti.static(phys.bonded):
             for g in range(n_rods):
@@ -238,6 +241,7 @@ def measure_sums_blocked(
     charge: nd1,
     pair_table: nd3,
     rod_strength: nd1,
+    attraction_partners: nd2,
     bond_intact: nd1,
     cell: nd1,
     params: nd1,
@@ -266,8 +270,8 @@ def measure_sums_blocked(
         for i in range(d * MEASURE_BLOCK, ti.min((d + 1) * MEASURE_BLOCK, n_discs)):
             add_disc_entries(
                 ns, full, phys, i, vel, omega, disc_x, disc_off, offsets, nbr, nbr_xi, nbr_psi,
-                nbr_count, charge, pair_table, rod_strength, bond_intact, cell, params,
-                rod_contacts, pair_out, pair_flags, block_sums, rod_blocks + d,
+                nbr_count, charge, pair_table, rod_strength, attraction_partners, bond_intact, cell,
+                params, rod_contacts, pair_out, pair_flags, block_sums, rod_blocks + d,
             )  # fmt: skip
     if ti.static(phys.bonded):
         for b in range(rod_blocks):

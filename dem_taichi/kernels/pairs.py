@@ -63,6 +63,7 @@ def pair_interaction(
     charge: T,
     pair_table: T,
     rod_strength: T,
+    attraction_partners: T,
     bond_intact: T,
     cell: T,
     params: T,
@@ -76,7 +77,9 @@ def pair_interaction(
     species by the disc's place in its chain of ``phys.chain`` discs, and bonded neighbours with
     their bond intact do not interact (:mod:`dem_taichi.kernels.bonds`). Rod strengths
     (``phys.strength``): the long-range F_max and k_a of the pair are multiplied by the harmonic
-    mean of ``rod_strength`` of the two discs' rods (rod = disc // ``phys.chain``). Rolling
+    mean of ``rod_strength`` of the two discs' rods (rod = disc // ``phys.chain``). Attraction
+    partners (``phys.partners``): once ``attraction_partners`` is set (at state A), an attractive
+    pair (s < 0) acts only if its two rods are partners (:mod:`dem_taichi.kernels.layout`). Rolling
     resistance (``phys.rolling``): the rolling spring ψ of the entry adds the couple M (on i; −M
     on j) of :mod:`dem_taichi.physics.rolling` to the two torques, and ½ κ_r ψ² to U_contact.
     """
@@ -186,12 +189,26 @@ def pair_interaction(
                         m = 2.0 * s_a * s_b / (s_a + s_b)
                         s_f *= m
                         s_k *= m
-                    f_l = long_range_force(gap, s_f, s_k, g_max)
-                    fn += f_l
-                    if f_l != 0.0:
-                        long_active = 1
-                    if ti.static(not update):
-                        u_long += long_range_energy(gap, s_f, s_k, g_max)
+                    attracts = 1
+                    if ti.static(phys.partners):
+                        # from state A on, only rods that attracted each other at A attract
+                        # ([long_range] attraction_pairs = "bonded_at_A"); repulsion unchanged
+                        if s_f < 0.0:
+                            rod_a = i // phys.chain
+                            n_a = attraction_partners[rod_a, 0]
+                            if n_a >= 0:
+                                attracts = 0
+                                rod_b = j // phys.chain
+                                for c in range(n_a):
+                                    if attraction_partners[rod_a, 1 + c] == rod_b:
+                                        attracts = 1
+                    if attracts == 1:
+                        f_l = long_range_force(gap, s_f, s_k, g_max)
+                        fn += f_l
+                        if f_l != 0.0:
+                            long_active = 1
+                        if ti.static(not update):
+                            u_long += long_range_energy(gap, s_f, s_k, g_max)
             if ti.static(phys.vdw):
                 if charge[si] != 0 and charge[sj] != 0:
                     fw = params[P_VDW_F]
@@ -243,6 +260,7 @@ def disc_forces(
     charge: T,
     pair_table: T,
     rod_strength: T,
+    attraction_partners: T,
     bond_intact: T,
     cell: T,
     params: T,
@@ -277,6 +295,7 @@ def disc_forces(
             charge,
             pair_table,
             rod_strength,
+            attraction_partners,
             bond_intact,
             cell,
             params,

@@ -226,6 +226,7 @@ def prime_forces_parallel(
     charge: nd1,
     pair_table: nd3,
     rod_strength: nd1,
+    attraction_partners: nd2,
     bond_intact: nd1,
     cell: nd1,
     params: nd1,
@@ -246,7 +247,8 @@ def prime_forces_parallel(
                     disc_forces(
                         ns, phys, False, False, True, r * ns + s, vel, omega, force, torque,
                         disc_x, disc_off, offsets, nbr, nbr_xi, nbr_psi, nbr_count, charge,
-                        pair_table, rod_strength, bond_intact, cell, params, flags,
+                        pair_table, rod_strength, attraction_partners, bond_intact, cell, params,
+                        flags,
                     )  # fmt: skip
                 if ti.static(phys.bonded):
                     gather_bond_forces(
@@ -259,7 +261,7 @@ def prime_forces_parallel(
                 disc_forces(
                     ns, phys, True, False, False, i, vel, omega, force, torque, disc_x,
                     disc_off, offsets, nbr, nbr_xi, nbr_psi, nbr_count, charge, pair_table,
-                    rod_strength, bond_intact, cell, params, flags,
+                    rod_strength, attraction_partners, bond_intact, cell, params, flags,
                 )  # fmt: skip
         if ti.static(phys.bonded):
             for b in range(force.shape[0]):

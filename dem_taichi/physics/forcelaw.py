@@ -39,10 +39,12 @@ Conventions fixed here (the notes leave them open; the engine must match them):
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from dem_taichi.physics.attraction import are_partners
 from dem_taichi.physics.rolling import rolling_moment
 from dem_taichi.physics.snapshot import NetworkSnapshot
 
@@ -50,6 +52,7 @@ __all__ = [
     "PairForces",
     "PairParameters",
     "PotentialEnergy",
+    "attracting_rod_pairs",
     "branch_vectors",
     "contact_normal_force",
     "contact_normal_stiffness",
@@ -310,7 +313,43 @@ class PairParameters:
 
 def pair_parameters(snapshot: NetworkSnapshot) -> PairParameters:
     """Pair F_max, k_a (harmonic mean; times the harmonic mean of the two rods' strengths when the
-    snapshot has them), g_max = F_max/k_a and charge product of listed pairs."""
+    snapshot has them), g_max = F_max/k_a and charge product of listed pairs. With attraction
+    partners (:attr:`NetworkSnapshot.attraction_partners`), an attractive pair (s < 0) of two
+    rods that are not partners has F_max = k_a = g_max = 0 (:mod:`dem_taichi.physics.attraction`).
+    """
+    mixed = _mixed_parameters(snapshot)
+    if snapshot.attraction_partners is None:
+        return mixed
+    chain = snapshot.charge.shape[0]
+    partners = are_partners(
+        snapshot.attraction_partners, snapshot.pair_i // chain, snapshot.pair_j // chain
+    )
+    cut = (mixed.charge_product < 0.0) & ~partners
+    return dataclasses.replace(
+        mixed,
+        f_max=np.where(cut, 0.0, mixed.f_max),
+        k_a=np.where(cut, 0.0, mixed.k_a),
+        g_max=np.where(cut, 0.0, mixed.g_max),
+    )
+
+
+def attracting_rod_pairs(snapshot: NetworkSnapshot) -> np.ndarray:
+    """The rod pairs (a, b), a < b, once each, of the snapshot that attract under the
+    unrestricted law: at least one listed pair of their discs of opposite charge (s < 0) with
+    F_max > 0 within the range (gap <= g_max), (P, 2) int. What
+    :func:`dem_taichi.physics.attraction.partner_table` takes at state A."""
+    mixed = _mixed_parameters(snapshot)
+    gap = np.hypot(*pair_separation(snapshot).T) - snapshot.diameter
+    on = (mixed.charge_product < 0.0) & (mixed.f_max > 0.0) & (gap <= mixed.g_max)
+    chain = snapshot.charge.shape[0]
+    rods = np.sort(
+        np.stack([snapshot.pair_i[on] // chain, snapshot.pair_j[on] // chain], axis=1), axis=1
+    )
+    return np.unique(rods, axis=0).reshape(-1, 2)
+
+
+def _mixed_parameters(snapshot: NetworkSnapshot) -> PairParameters:
+    """:func:`pair_parameters` without the attraction partners."""
     species_i = snapshot.species(snapshot.pair_i)
     species_j = snapshot.species(snapshot.pair_j)
     f_max = harmonic_mean(snapshot.f_max[species_i], snapshot.f_max[species_j])

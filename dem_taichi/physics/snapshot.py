@@ -103,6 +103,10 @@ class NetworkSnapshot:
         rod_strength: (N_rods,) long-range strength s of every rod (the rods of n_s places: for
             bonded rods, disc // n_s), a pair's F_max and k_a multiplied by the harmonic mean of
             its two rods' s ([long_range] strength_spread); None: all 1.
+        attraction_partners: (N_rods, C) int partner table of the rods (the rods of n_s places,
+            as for ``rod_strength``): an attractive pair acts only between partners of a rod
+            whose row is set ([long_range] attraction_pairs = "bonded_at_A",
+            :mod:`dem_taichi.physics.attraction`); None: every pair attracts.
     """
 
     cell_lengths: np.ndarray
@@ -130,6 +134,7 @@ class NetworkSnapshot:
     rolling_stiffness: float = 0.0
     rolling_cap: float = 0.0
     rod_strength: np.ndarray | None = None
+    attraction_partners: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -192,6 +197,19 @@ class NetworkSnapshot:
             if not np.all(np.isfinite(strength)) or np.any(strength <= 0.0):
                 raise ValueError("NetworkSnapshot.rod_strength: need finite values > 0")
             put(self, "rod_strength", strength)
+
+        if self.attraction_partners is not None:
+            n_chains = n_rods * n_s // n_species
+            table = _as_array(
+                "attraction_partners", self.attraction_partners, np.int64, (n_chains, -1)
+            )
+            counts = table[:, 0]
+            if table.shape[1] < 1 or np.any(counts < -1) or np.any(counts > table.shape[1] - 1):
+                raise ValueError(
+                    "NetworkSnapshot.attraction_partners: need rows [n, partners...] with -1 <= n "
+                    "< the number of columns"
+                )
+            put(self, "attraction_partners", table)
 
         pair_i = _as_array("pair_i", self.pair_i, np.int64, (-1,))
         n_pairs = pair_i.shape[0]

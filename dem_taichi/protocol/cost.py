@@ -111,6 +111,7 @@ def _memory_bytes(scene, precision: str) -> float:
         "cells": cells,
         "rolling_discs": discs if scene.rolling_parameters.enabled else 1,
         "strength_rods": p.n_rods if lr.enabled and lr.strength_spread > 0.0 else 1,
+        "partner_rods": p.n_rods if lr.enabled and lr.attraction_pairs == "bonded_at_A" else 1,
         # the parallel paths' block sums of the measure (one row on the serial path)
         "measure_blocks": measure_block_rows(bodies, discs, bonded) if parallel else 1,
     }

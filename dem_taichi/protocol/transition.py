@@ -137,6 +137,11 @@ def compress_to_transition(runner) -> RelaxedState:
     runner.log.transition = transition
     runner.log.transition_details = details
     sim.set_strain_reference()
+    if sim.physics.partners:
+        # [long_range] attraction_pairs = "bonded_at_A": the gel's bonds as they are at A (the
+        # forces at A unchanged); state A, and every branch from it, carries them
+        bonded = sim.freeze_attraction()
+        runner._say(f"[A] attraction kept between the {len(bonded)} rod pairs bonded at A")
     a_measures = sim.measure()
     if runner.history is not None:
         runner.history.append(a_measures)

@@ -200,7 +200,14 @@ class LongRange(SceneSection):
     ours, not the study's: its rods are all alike): rod r draws s_r = exp(σ z_r), z_r ~ N(0, 1)
     from its own random stream of the scene's seed (the gas is unchanged), and the s_r are
     divided by their mean; a pair of discs of rods a and b has F_max and k_a times
-    2 s_a s_b / (s_a + s_b). Default 0 (rods alike)."""
+    2 s_a s_b / (s_a + s_b). Default 0 (rods alike).
+
+    ``attraction_pairs = "bonded_at_A"`` (a modelling option of ours, not the study's, whose law
+    is reversible) keeps the gel's bonds as they were at state A: from A on, an attractive pair
+    (opposite charges) acts only between two rods that attracted each other at A; rods that meet
+    later, or pairs of discs of unbonded rods, do not attract; repulsion is unchanged. Before A
+    (the gas, its ageing and the compression to A) every pair attracts, so A is the same.
+    Default ``"any"`` (the study's law: every opposite-charge pair within range attracts)."""
 
     SECTION = "long_range"
     enabled: bool = field(default=False, metadata=_doc("long-range forces on", "-"))
@@ -256,6 +263,16 @@ class LongRange(SceneSection):
             "the harmonic mean of its two rods' s, so the range g_max is kept. 0: every rod alike "
             "(costs nothing)",
             unit="-",
+        ),
+    )
+    attraction_pairs: str = field(
+        default="any",
+        metadata=_choices(
+            "any",
+            "bonded_at_A",
+            doc="which pairs of opposite charge attract: 'any' within range (the study's law); "
+            "'bonded_at_A' from state A on only discs of two rods that attracted each other at A "
+            "(no new bonds after A; repulsion unchanged; costs nothing when 'any')",
         ),
     )
 

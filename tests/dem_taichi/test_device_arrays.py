@@ -30,21 +30,25 @@ def test_shapes_follow_the_sizes():
     sizes = {"rods": 3, "discs": 15, "spheres": 5, "species": 5, "capacity": 7, "cells": 4}
     sizes["rolling_discs"] = 1  # no rolling resistance: the rolling springs take one row
     sizes["strength_rods"] = 1  # rods alike: the strengths take one entry
+    sizes["partner_rods"] = 1  # every pair attracts: one unused row of partners
     sizes["measure_blocks"] = 2
     shapes = {a.name: a.shape_for(sizes) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (3, 2) and shapes["nbr"] == (15, 7) and shapes["pair_out"] == (15, 7, 4)
     assert shapes["nbr_psi"] == (1, 7) and shapes["old_psi"] == (1, 7)
     assert shapes["cell_count"] == (4, 4) and shapes["pair_table"] == (5, 5, 3)
     assert shapes["rod_strength"] == (1,)
+    assert shapes["attraction_partners"] == (1, 32)
     # bonded rods: the bodies are the discs, one disc per body, the species per place in a rod
     bonded = {"rods": 15, "discs": 15, "spheres": 1, "species": 5, "capacity": 7, "cells": 4}
     bonded["rolling_discs"] = 15  # with rolling resistance: one spring per list entry
     bonded["strength_rods"] = 3  # a spread of strengths: one per rod, not per body
+    bonded["partner_rods"] = 3  # attraction only between the rods bonded at A: a row per rod
     bonded["measure_blocks"] = 3
     shapes = {a.name: a.shape_for(bonded) for a in DEVICE_ARRAYS}
     assert shapes["pos"] == (15, 2) and shapes["offsets"] == (1,) and shapes["charge"] == (5,)
     assert shapes["bond_intact"] == (15,) and shapes["nbr_psi"] == (15, 7)
     assert shapes["rod_strength"] == (3,)
+    assert shapes["attraction_partners"] == (3, 32)
     assert shapes["block_sums"] == (3, 16)
     grown = {a.name for a in DEVICE_ARRAYS if a.grows}
     assert grown == {
