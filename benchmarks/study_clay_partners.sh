@@ -1,0 +1,18 @@
+#!/bin/bash
+# Issue 19: attraction only between the rods bonded at state A (cell BA): the shipped `study_demo`
+# with [long_range] attraction_pairs = "bonded_at_A" (from A on, rods that meet do not bond;
+# repulsion unchanged; the gas, its ageing and A unchanged); the isotropic path alone (gas ageing
+# -> A, A->B on to 200, probes at every increment, path states saved), seeds 11, 2, 12, one worker
+# each. Paired by seed with SP05iso (study_clay_pstar.sh), whose A it shares bit for bit.
+# Criteria and results: benchmarks/results/study_clay_partners.md.
+#   bash benchmarks/study_clay_partners.sh OUT [PYTHON] [ONLY]
+#   python benchmarks/study_clay_pilots.py OUT --out benchmarks/results/study_clay_partners_cells
+#   python benchmarks/runs_paired.py benchmarks/results/study_clay_pstar_cells_runs.csv \
+#       benchmarks/results/study_clay_partners_cells_runs.csv --before-cell SP05iso --after-cell BA
+set -u
+source "$(dirname "${BASH_SOURCE[0]}")/study_clay_run.sh"
+for seed in 11 2 12; do
+  run_protocol BA_s$seed study_demo --workers 1 --set scene.seed=$seed \
+    "${ISOTROPIC_ONLY[@]}" --set long_range.attraction_pairs=bonded_at_A \
+    --set protocol.save_path_states=true
+done
