@@ -49,6 +49,7 @@ class SimulationLike(Protocol):
     a: dict[str, Any]
     body: RodGeometry  # the engine's bodies
     physics: Physics
+    kernel_physics: Physics  # the switches the kernels are launched with
     full_list: bool
     execution: str
     list_build: str
@@ -77,7 +78,7 @@ def prime_forces_now(sim: SimulationLike) -> None:
     from dem_taichi.kernels.parallel_lists import prime_forces_parallel, rebuild_parallel
     from dem_taichi.kernels.step import prime_forces
 
-    ns, full, phys = sim.body.n_spheres, sim.full_list, sim.physics
+    ns, full, phys = sim.body.n_spheres, sim.full_list, sim.kernel_physics
     for _ in range(8):
         if sim.execution != "serial" and sim.list_build == "parallel":
             sim._launch(place_all_discs, ns=ns)
@@ -99,7 +100,7 @@ def advance(sim: SimulationLike, n_steps: int, fire: bool = False) -> None:
 
     rebuild = rebuild_parallel if sim.list_build == "parallel" else K.rebuild_if_needed
     build = {"advance": True} if sim.list_build == "parallel" else {}
-    ns, full, phys = sim.body.n_spheres, sim.full_list, sim.physics
+    ns, full, phys = sim.body.n_spheres, sim.full_list, sim.kernel_physics
     done = 0
     while done < n_steps:
         flags = sim.a["flags"].to_numpy()

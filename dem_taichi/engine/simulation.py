@@ -51,6 +51,7 @@ the call, the scene's Δt after it; ``sim.fire_status()`` reports its last Δt, 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 import time as _time
@@ -211,6 +212,9 @@ class Simulation:
         upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
+        #: the switches the kernels are launched with (:meth:`_sync_kernel_physics`)
+        self.kernel_physics = self.physics
+        self._sync_kernel_physics()
         self._prime()
 
     # ------------------------------------------------------------------------------------------
@@ -294,6 +298,21 @@ class Simulation:
         restored = self.state_io.restore(state)
         self.step, self.reference_lengths = restored.step, restored.reference_lengths
         self._rates = restored.rates
+        self._sync_kernel_physics()
+
+    def _sync_kernel_physics(self) -> None:
+        """The kernels run with the scene's switches, except that attraction partners
+        (``[long_range] attraction_pairs = "bonded_at_A"``) compile in only once they are set:
+        until state A every pair attracts, and the kernels are then those of the scene without
+        the option, so the gas, its ageing and A are the same bit for bit (a kernel compiled
+        with the partner test rounds its sums in another order)."""
+        active = self.physics
+        if active.partners:
+            table = self.a["attraction_partners"].to_numpy()
+            if np.all(table[:, 0] == NOT_SET):
+                active = dataclasses.replace(active, partners=False)
+        self.kernel_physics = active
+        self.views.kernel_physics = active
 
     def load_gas(
         self,
@@ -434,8 +453,10 @@ class Simulation:
         (``[long_range] attraction_pairs = "bonded_at_A"``; the protocol calls it at state A):
         the partner table of :mod:`dem_taichi.physics.attraction` from the rod pairs of
         :func:`dem_taichi.physics.forcelaw.attracting_rod_pairs` on the current network, set
-        once (partners already set are kept: a second call changes nothing). Forces are
-        unchanged at the state it is called on. Returns the partner rod pairs (P, 2).
+        once (partners already set are kept: a second call changes nothing). The same pairs act
+        at the state it is called on; from then on the kernels run with the partner test
+        (:meth:`_sync_kernel_physics`), whose sums may round differently in the last bits.
+        Returns the partner rod pairs (P, 2).
 
         Raises ValueError for a scene without the option, or a rod with more partners than
         :data:`dem_taichi.kernels.layout.PARTNER_CAPACITY`."""
@@ -451,6 +472,7 @@ class Simulation:
         self.a["attraction_partners"].from_numpy(
             partner_table(pairs, self.n_rods, L.PARTNER_COLUMNS)
         )
+        self._sync_kernel_physics()
         return pairs
 
     def _launch(self, kernel, **scalars) -> None:

@@ -63,6 +63,8 @@ class SimulationViews:
         self.geometry = geometry
         self.body = body
         self.physics = physics
+        #: the switches the measure kernels run with (the simulation's ``kernel_physics``)
+        self.kernel_physics = physics
         self.bonded = physics.bonded
         self.full_list = full_list
         self.n_rods = n_rods
@@ -88,7 +90,7 @@ class SimulationViews:
 
         t0 = _time.perf_counter()
         kernel = measure_sums_blocked if self._on_device else measure_sums
-        self._launch(kernel, ns=self.body.n_spheres, full=self.full_list, phys=self.physics)
+        self._launch(kernel, ns=self.body.n_spheres, full=self.full_list, phys=self.kernel_physics)
         sums = self.a["measures"].to_numpy().astype(float)
         self.timings["measure"] += _time.perf_counter() - t0
         return sums
