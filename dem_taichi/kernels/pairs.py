@@ -189,26 +189,28 @@ def pair_interaction(
                         m = 2.0 * s_a * s_b / (s_a + s_b)
                         s_f *= m
                         s_k *= m
-                    attracts = 1
                     if ti.static(phys.partners):
                         # from state A on, only rods that attracted each other at A attract
-                        # ([long_range] attraction_pairs = "bonded_at_A"); repulsion unchanged
+                        # ([long_range] attraction_pairs = "bonded_at_A"); repulsion unchanged.
+                        # A pair of other rods gets F_max = k_a = 0: no force, no energy.
                         if s_f < 0.0:
                             rod_a = i // phys.chain
                             n_a = attraction_partners[rod_a, 0]
                             if n_a >= 0:
-                                attracts = 0
                                 rod_b = j // phys.chain
+                                attracts = 0
                                 for c in range(n_a):
                                     if attraction_partners[rod_a, 1 + c] == rod_b:
                                         attracts = 1
-                    if attracts == 1:
-                        f_l = long_range_force(gap, s_f, s_k, g_max)
-                        fn += f_l
-                        if f_l != 0.0:
-                            long_active = 1
-                        if ti.static(not update):
-                            u_long += long_range_energy(gap, s_f, s_k, g_max)
+                                if attracts == 0:
+                                    s_f = 0.0
+                                    s_k = 0.0
+                    f_l = long_range_force(gap, s_f, s_k, g_max)
+                    fn += f_l
+                    if f_l != 0.0:
+                        long_active = 1
+                    if ti.static(not update):
+                        u_long += long_range_energy(gap, s_f, s_k, g_max)
             if ti.static(phys.vdw):
                 if charge[si] != 0 and charge[sj] != 0:
                     fw = params[P_VDW_F]
