@@ -140,7 +140,12 @@ def compress_to_transition(runner) -> RelaxedState:
     if sim.physics.partners:
         # [long_range] attraction_pairs = "bonded_at_A": the gel's bonds as they are at A (the
         # forces at A unchanged); state A, and every branch from it, carries them
-        bonded = sim.freeze_attraction()
+        try:
+            bonded = sim.freeze_attraction()
+        except ValueError as error:  # a rod with more partners than the table holds
+            raise ProtocolError(
+                f"{error}: use attraction_pairs = 'any', or a shorter range g_max"
+            ) from error
         runner._say(f"[A] attraction kept between the {len(bonded)} rod pairs bonded at A")
     a_measures = sim.measure()
     if runner.history is not None:
