@@ -135,8 +135,9 @@ rolling cap (RF01, `study_clay_rolling`: denser at 100 kPa on every seed, but de
 too; with μ 0.25, MU025KR, it costs K0: 0.78 ± 0.11). Every gel's specific volume falls by
 1.9–2.8× between 1 and 100 kPa, the study's by 3.2 (`compression_ends`). The gels keep 91–97 %
 of their bonded rod pairs from A to B and add 40–46 % new ones (`bond_turnover`); with no new
-bonds after A (BA, `study_clay_partners`) λ* rises by +0.018 ± 0.024 (to 0.203), not resolved,
-so the hardening is not from the bonds formed on the way. The TIV
+bonds after A (BA, `study_clay_partners`, A bit for bit SP05iso's) λ* rises by +0.018 ± 0.018
+(to 0.203, resolved at the edge) and K0 and the finding along K0 do not move: the bonds formed
+on the way account for a small part of the gap. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
