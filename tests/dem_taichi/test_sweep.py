@@ -38,6 +38,7 @@ REDUCED = """
 "probing.every_n_increments" = 0
 "protocol.servo_time" = 0.5
 "protocol.stress_tolerance" = 1.0e-2
+"protocol.servo_stiffness" = "secant"
 """
 
 

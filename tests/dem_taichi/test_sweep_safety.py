@@ -40,6 +40,7 @@ REDUCED = """
 "probing.dynamic" = false
 "probing.states" = "A, B, C"
 "probing.every_n_increments" = 0
+"protocol.servo_stiffness" = "secant"
 """
 SENTINEL = "SENTINEL.txt"
 
