@@ -33,7 +33,13 @@ from dem_taichi.physics.attraction import (
 )
 from dem_taichi.scene.config import SceneError, scene_from_toml
 
-from .test_two_body import DENSE_NETWORK, facing_rods, jammed_network, rods_scene
+from .test_two_body import (
+    DENSE_NETWORK,
+    assert_engine_matches_reference,
+    facing_rods,
+    jammed_network,
+    rods_scene,
+)
 
 BONDED_AT_A = {"attraction_pairs": "bonded_at_A"}
 
@@ -166,14 +172,7 @@ def test_engine_matches_the_numpy_reference_after_the_partners_are_set(rod_model
     assert sim.measure()["long_range_energy"] == pytest.approx(energy, rel=1e-9)
     assert abs(forcelaw.potential_energy(free).long_range - energy) > 1e-3 * abs(energy)
     if rod_model == "rigid":
-        force, torque = forcelaw.rod_forces_and_torques(snap)
-        state = sim.get_state()
-        scale = np.abs(force).max()
-        np.testing.assert_allclose(state["force"], force, atol=1e-9 * scale)
-        np.testing.assert_allclose(state["torque"], torque, atol=1e-9 * scale)
-        np.testing.assert_allclose(
-            sim.stress(), forcelaw.stress_from_forces(snap), atol=1e-9 * scale
-        )
+        assert_engine_matches_reference(sim, snap)
 
 
 def test_until_the_partners_are_set_the_run_is_the_scene_without_them_bit_for_bit():
