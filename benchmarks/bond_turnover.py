@@ -4,9 +4,10 @@ Usage::
 
     python benchmarks/bond_turnover.py RUN [RUN ...] [--out benchmarks/results/bond_turnover]
 
-Each RUN is a finished protocol run folder of rigid rods named ``<cell>_s<seed>`` (runs of one
-cell are replicas) with ``configuration_A.nc``, ``configuration_B.nc`` and ``state_A.npz`` (whose
-scene gives the rods, the charges and the range g_max = F_max/k_a). A *bond* is a pair of discs
+Each RUN is a finished protocol run folder named ``<cell>_s<seed>`` (runs of one cell are
+replicas) with ``state_A.npz`` and ``state_B.npz``: the engine's states, rigid or bonded rods
+(bonded: the discs where they are, the rods bent or not), and the scene (the rods, the charges
+and the range g_max = F_max/k_a). A *bond* is a pair of discs
 of two rods with opposite charges (an attractive pair of the long-range law) within the range:
 surface gap g <= g_max. Two rods are *bonded* if at least one pair of their discs is. From A to B
 the script counts, per run:
@@ -48,26 +49,21 @@ COLUMNS = (
 
 
 def bonds(
-    rod_position: np.ndarray,
-    rod_angle: np.ndarray,
+    discs: np.ndarray,
     lengths: np.ndarray,
     charge: np.ndarray,
-    spacing: float,
     diameter: float,
     g_max: float,
 ) -> np.ndarray:
-    """The bonds of a configuration of rigid rods: (P, 2) disc indices (i < j, disc s of rod r
-    is r n_s + s) of the pairs of discs of two different rods whose charges (``charge``, per place
-    in a rod) have a negative product and whose surface gap is at most ``g_max``, in the periodic
-    cell ``lengths``."""
+    """The bonds of a configuration of rods: (P, 2) disc indices (i < j, disc s of rod r is
+    r n_s + s, ``discs`` (M, 2) their centres) of the pairs of discs of two different rods whose
+    charges (``charge``, per place in a rod) have a negative product and whose surface gap is at
+    most ``g_max``, in the periodic cell ``lengths``."""
     from scipy.spatial import cKDTree
 
-    from dem_taichi.physics.forcelaw import disc_positions
-
     n_s = len(charge)
-    x = disc_positions(rod_position, rod_angle, n_s, spacing).reshape(-1, 2)
     lengths = np.asarray(lengths, dtype=float)
-    x = np.mod(x, lengths)
+    x = np.mod(np.asarray(discs, dtype=float), lengths)
     x[x >= lengths] = 0.0  # mod can round up to the length itself
     pairs = cKDTree(x, boxsize=lengths).query_pairs(diameter + g_max, output_type="ndarray")
     if len(pairs) == 0:
@@ -79,6 +75,21 @@ def bonds(
     r -= lengths * np.round(r / lengths)
     near = np.hypot(r[:, 0], r[:, 1]) - diameter <= g_max
     return np.stack([i[near], j[near]], axis=1).astype(np.int64)
+
+
+def disc_centres(state: dict[str, np.ndarray], n_spheres: int, spacing: float, bonded: bool):
+    """(disc centres (M, 2), cell lengths (2,)) of a saved engine state
+    (:mod:`dem_taichi.engine.state`): rigid rods' discs placed along each rod's axis; bonded
+    rods' bodies are their discs (rod-major), their centres as they are, bent or not."""
+    from dem_taichi.kernels import layout
+    from dem_taichi.physics.forcelaw import disc_positions
+
+    lengths = np.array([state["cell"][layout.C_LX], state["cell"][layout.C_LY]], dtype=float)
+    bodies = np.asarray(state["reduced_position"], dtype=float) * lengths
+    if bonded:
+        return bodies, lengths
+    discs = disc_positions(bodies, np.asarray(state["angle"], dtype=float), n_spheres, spacing)
+    return discs.reshape(-1, 2), lengths
 
 
 def rod_pairs(disc_pairs: np.ndarray, n_spheres: int) -> np.ndarray:
@@ -113,35 +124,28 @@ def turnover(at_a: np.ndarray, at_b: np.ndarray, n_rods: int, n_spheres: int) ->
 
 
 def run_row(folder: Path) -> dict:
-    """The bond turnover from A to B of one run folder (``<cell>_s<seed>``)."""
-    import xarray as xr
-
+    """The bond turnover from A to B of one run folder (``<cell>_s<seed>``), read from its
+    ``state_A.npz`` and ``state_B.npz`` (rigid or bonded rods)."""
     from dem_taichi.io.checkpoint import load_checkpoint
     from dem_taichi.scene.config import scene_from_toml
     from dem_taichi.scene.geometry import species_parameters
     from dem_taichi.scene.protocol_sections import protocol_settings
 
     cell, seed = cell_and_seed(folder)
-    _, meta = load_checkpoint(folder / "state_A.npz")
-    scene = scene_from_toml(meta["scene_toml"])
-    if scene.bonded:
-        raise SystemExit(f"{folder}: bonded rods; this script reads rigid rods only")
+    states = {label: load_checkpoint(folder / f"state_{label}.npz") for label in ("A", "B")}
+    scene = scene_from_toml(states["A"][1]["scene_toml"])
     charge, f_max, k_a = species_parameters(scene)
     ranges = {f / k for f, k in zip(f_max, k_a, strict=True) if k > 0}
     if len(ranges) > 1:
         raise SystemExit(f"{folder}: the species have different ranges {sorted(ranges)}")
     g_max = ranges.pop() if ranges else 0.0
     p = scene.particles
+    disc_area = p.n_rods * p.n_spheres * math.pi * p.diameter**2 / 4
     found, volume = {}, {}
-    for label in ("A", "B"):
-        with xr.open_dataset(folder / f"configuration_{label}.nc") as conf:
-            lengths = conf["cell_lengths"].values
-            found[label] = bonds(
-                conf["rod_position"].values, conf["rod_angle"].values, lengths, charge,
-                p.spacing, p.diameter, g_max,
-            )  # fmt: skip
-            disc_area = p.n_rods * p.n_spheres * math.pi * p.diameter**2 / 4
-            volume[label] = float(lengths[0] * lengths[1] / disc_area)
+    for label, (state, _) in states.items():
+        discs, lengths = disc_centres(state, p.n_spheres, p.spacing, scene.bonded)
+        found[label] = bonds(discs, lengths, charge, p.diameter, g_max)
+        volume[label] = float(lengths[0] * lengths[1] / disc_area)
     row = {"cell": cell, "seed": seed, "scale": protocol_settings(scene).stress_scale_kpa}
     row |= {"v_A": volume["A"], "v_B": volume["B"]}
     return row | turnover(found["A"], found["B"], p.n_rods, p.n_spheres)
