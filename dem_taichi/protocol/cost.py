@@ -83,9 +83,13 @@ class CostEstimate:
 
 def _memory_bytes(scene, precision: str) -> float:
     from dem_taichi.engine.device_arrays import DEVICE_ARRAYS
+    from dem_taichi.engine.parameters import resolve_physics
     from dem_taichi.kernels.layout import measure_block_rows
+    from dem_taichi.scene.geometry import species_parameters
 
     p = scene.particles
+    # the engine's own switches (charged discs included), so the sizes are those it allocates
+    physics = resolve_physics(scene, species_parameters(scene)[0], p.n_spheres)
     bonded = p.rod_model == "bonded"
     discs = p.n_rods * p.n_spheres
     bodies = discs if bonded else p.n_rods
@@ -109,9 +113,9 @@ def _memory_bytes(scene, precision: str) -> float:
         "species": p.n_spheres,
         "capacity": capacity,
         "cells": cells,
-        "rolling_discs": discs if scene.rolling_parameters.enabled else 1,
-        "strength_rods": p.n_rods if lr.enabled and lr.strength_spread > 0.0 else 1,
-        "partner_rods": p.n_rods if lr.enabled and lr.attraction_pairs == "bonded_at_A" else 1,
+        "rolling_discs": discs if physics.rolling else 1,
+        "strength_rods": p.n_rods if physics.strength else 1,
+        "partner_rods": p.n_rods if physics.partners else 1,
         # the parallel paths' block sums of the measure (one row on the serial path)
         "measure_blocks": measure_block_rows(bodies, discs, bonded) if parallel else 1,
     }

@@ -87,3 +87,19 @@ def test_protocol_estimate_counts_the_ageing_and_the_isotropic_path_past_B():
     further = scene_from_options("study", overrides=["protocol.isotropic_end_stress=1000"])
     assert estimate_cost(further, "protocol").steps > estimate_cost(study, "protocol").steps
     assert 4.14e6 / 3 < estimate_cost(study, "protocol").steps < 3 * 4.14e6
+
+
+def test_the_optional_arrays_are_sized_as_the_engine_sizes_them():
+    """The rods' strengths and attraction partners take a row per rod only where the engine
+    allocates one: keys set on a scene whose discs carry no charge (pattern neutral) cost
+    nothing, as in the engine."""
+    base = load_scene("study_demo")
+    options = {"strength_spread": 0.5, "attraction_pairs": "bonded_at_A"}
+
+    def memory(**long_range):
+        return estimate_cost(base.replace(long_range=long_range), "run").memory_bytes
+
+    assert memory(pattern="neutral", **options) == memory(pattern="neutral")
+    rods = base.particles.n_rods
+    extra = memory(**options) - memory()
+    assert extra == (rods - 1) * 8 + (rods - 1) * 32 * 4  # f64 strengths, int32 partner rows
