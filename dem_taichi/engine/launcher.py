@@ -49,13 +49,15 @@ class SimulationLike(Protocol):
     a: dict[str, Any]
     body: RodGeometry  # the engine's bodies
     physics: Physics
-    kernel_physics: Physics  # the switches the kernels are launched with
     full_list: bool
     execution: str
     list_build: str
     timings: dict[str, float]
     step: int
     n_rebuild_calls: int
+
+    @property
+    def kernel_physics(self) -> Physics: ...  # the switches the kernels are launched with
 
     def _launch(self, kernel, **scalars) -> None: ...
 

@@ -51,7 +51,6 @@ the call, the scene's Δt after it; ``sim.fire_status()`` reports its last Δt, 
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import numbers
 import time as _time
@@ -89,7 +88,7 @@ from dem_taichi.engine.simulation_state import SimulationState, checkpoint_meta,
 from dem_taichi.engine.simulation_views import SimulationViews
 from dem_taichi.engine.work_profile import WorkLedger, add_work, current_work
 from dem_taichi.kernels import layout as L
-from dem_taichi.physics.attraction import NOT_SET, partner_pairs, partner_table, unset_table
+from dem_taichi.physics.attraction import unset_table
 from dem_taichi.physics.forcelaw import attracting_rod_pairs
 from dem_taichi.physics.snapshot import NetworkSnapshot
 from dem_taichi.scene.config import Scene, load_scene
@@ -212,8 +211,6 @@ class Simulation:
         upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
         self.step = 0
-        #: the switches the kernels are launched with (:meth:`_sync_kernel_physics`)
-        self.kernel_physics = self.physics
         self._sync_kernel_physics()
         self._prime()
 
@@ -300,19 +297,14 @@ class Simulation:
         self._rates = restored.rates
         self._sync_kernel_physics()
 
+    @property
+    def kernel_physics(self) -> Physics:
+        """The switches the kernels are launched with (:meth:`SimulationState.kernel_physics`:
+        the partner test only once the partners are set)."""
+        return self.views.kernel_physics
+
     def _sync_kernel_physics(self) -> None:
-        """The kernels run with the scene's switches, except that attraction partners
-        (``[long_range] attraction_pairs = "bonded_at_A"``) compile in only once they are set:
-        until state A every pair attracts, and the kernels are then those of the scene without
-        the option, so the gas, its ageing and A are the same bit for bit (a kernel compiled
-        with the partner test rounds its sums in another order)."""
-        active = self.physics
-        if active.partners:
-            table = self.a["attraction_partners"].to_numpy()
-            if np.all(table[:, 0] == NOT_SET):
-                active = dataclasses.replace(active, partners=False)
-        self.kernel_physics = active
-        self.views.kernel_physics = active
+        self.views.kernel_physics = self.state_io.kernel_physics()
 
     def load_gas(
         self,
@@ -465,13 +457,11 @@ class Simulation:
                 "freeze_attraction needs [long_range] attraction_pairs = 'bonded_at_A' (and "
                 "charged discs with the long-range law on)"
             )
-        table = self.a["attraction_partners"].to_numpy()
-        if np.any(table[:, 0] != NOT_SET):
-            return partner_pairs(table)
+        kept = self.state_io.partner_pairs()
+        if kept is not None:
+            return kept
         pairs = attracting_rod_pairs(self.snapshot())
-        self.a["attraction_partners"].from_numpy(
-            partner_table(pairs, self.n_rods, L.PARTNER_COLUMNS)
-        )
+        self.state_io.set_partners(pairs)
         self._sync_kernel_physics()
         return pairs
 

@@ -13,6 +13,7 @@ checkpoint with its scene (:mod:`dem_taichi.io.checkpoint`); the simulation's
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -28,6 +29,7 @@ from dem_taichi.engine.state import (
     upgrade_state,
 )
 from dem_taichi.kernels import layout as L
+from dem_taichi.physics.attraction import NOT_SET, partner_pairs, partner_table
 from dem_taichi.scene.config import Scene, scene_from_toml, scene_to_toml
 from dem_taichi.scene.geometry import GasState, RodGeometry
 
@@ -130,6 +132,31 @@ class SimulationState:
 
         self._launch(place_all_discs, ns=self.body.n_spheres)
         return restored
+
+    def partner_pairs(self) -> np.ndarray | None:
+        """The rod pairs of the attraction-partner table ((P, 2)), or None while it is not set
+        (or the scene has no partners: ``[long_range] attraction_pairs``)."""
+        if not self.physics.partners:
+            return None
+        table = self.a["attraction_partners"].to_numpy()
+        return None if np.all(table[:, 0] == NOT_SET) else partner_pairs(table)
+
+    def set_partners(self, pairs: np.ndarray) -> None:
+        """Set the partner table of the rod pairs ``pairs`` (:func:`dem_taichi.physics.
+        attraction.partner_table`; ValueError for a rod with too many partners)."""
+        self.a["attraction_partners"].from_numpy(
+            partner_table(pairs, self.n_rods, L.PARTNER_COLUMNS)
+        )
+
+    def kernel_physics(self) -> Physics:
+        """The switches the kernels run with: the scene's, except that attraction partners
+        (``[long_range] attraction_pairs = "bonded_at_A"``) compile in only once they are set:
+        until state A every pair attracts, and the kernels are then those of the scene without
+        the option, so the gas, its ageing and A are the same bit for bit (a kernel compiled
+        with the partner test rounds its sums in another order)."""
+        if self.physics.partners and self.partner_pairs() is None:
+            return dataclasses.replace(self.physics, partners=False)
+        return self.physics
 
     def forget_contacts(self, time: float) -> None:
         """Empty the neighbour lists with their tangential and rolling springs (the contacts
