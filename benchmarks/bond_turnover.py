@@ -24,7 +24,6 @@ ones hardens with the bonds it forms on the way, which ``[long_range] attraction
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -33,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from local_compressibility import cell_and_seed, write_outputs  # noqa: E402
+from local_compressibility import cell_and_seed, main_over_runs  # noqa: E402
 
 COLUMNS = (
     ("v_A", "v_A"),
@@ -173,12 +172,7 @@ def figure(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="finished run folders <cell>_s<seed>")
-    parser.add_argument("--out", type=Path, default=Path("bond_turnover"))
-    args = parser.parse_args(argv)
-    rows = [run_row(folder) for folder in args.runs]
-    write_outputs(rows, args.out, list(COLUMNS), figure)
+    main_over_runs(__doc__, "bond_turnover", run_row, list(COLUMNS), figure, argv)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ t). Writes ``<out>.md``, ``<out>.csv`` (per run) and ``<out>.png`` (the figure).
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -37,8 +36,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from local_compressibility import (  # noqa: E402
     cell_and_seed,
     isotropic_path_kpa,
+    main_over_runs,
     run_probes,
-    write_outputs,
 )
 from local_compressibility import markdown as runs_markdown  # noqa: E402
 
@@ -139,12 +138,7 @@ def figure(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+", type=Path, help="finished run folders <cell>_s<seed>")
-    parser.add_argument("--out", type=Path, default=Path("compression_ends"))
-    args = parser.parse_args(argv)
-    rows = [run_row(folder) for folder in args.runs]
-    write_outputs(rows, args.out, list(COLUMNS), figure)
+    main_over_runs(__doc__, "compression_ends", run_row, list(COLUMNS), figure, argv)
 
 
 if __name__ == "__main__":

@@ -244,6 +244,24 @@ def main(argv: list[str] | None = None) -> None:
     write_outputs(rows, args.out, _columns(args.elastic), figure)
 
 
+def main_over_runs(
+    doc: str,
+    default_out: str,
+    run_row: Callable[[Path], dict],
+    cols: list[tuple[str, str]],
+    draw: Callable[[list[dict], Path], None],
+    argv: list[str] | None = None,
+) -> None:
+    """The command line of a script that reads finished run folders ``<cell>_s<seed>`` into one
+    row each (``run_row``) and writes them (:func:`write_outputs` over ``cols``, the figure
+    ``draw``) to ``--out`` (default ``default_out``); ``doc``: the script's docstring."""
+    parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="finished run folders <cell>_s<seed>")
+    parser.add_argument("--out", type=Path, default=Path(default_out))
+    args = parser.parse_args(argv)
+    write_outputs([run_row(folder) for folder in args.runs], args.out, cols, draw)
+
+
 def write_outputs(
     rows: list[dict],
     out: Path,

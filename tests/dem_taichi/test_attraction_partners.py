@@ -38,6 +38,7 @@ from .test_two_body import (
     assert_engine_matches_reference,
     facing_rods,
     jammed_network,
+    make_static,
     rods_scene,
 )
 
@@ -128,16 +129,6 @@ def dense(rod_model: str, execution: str):
     )
 
 
-def static(sim: Simulation) -> None:
-    """Velocities and the affine flow zeroed, the forces recomputed (jammed_network's end)."""
-    state = sim.get_state()
-    state["velocity"][:] = 0.0
-    state["angular_velocity"][:] = 0.0
-    state["params"][[layout.P_RATE_X, layout.P_RATE_Y]] = 0.0
-    sim.set_state(state)
-    sim.recompute_forces()
-
-
 @pytest.mark.parametrize(
     "rod_model, execution",
     [("rigid", "serial"), ("bonded", "serial"), ("rigid", "parallel"), ("bonded", "gather")],
@@ -163,7 +154,7 @@ def test_engine_matches_the_numpy_reference_after_the_partners_are_set(rod_model
     # pairs of the other rods, and of rods that meet on the way, are cut
     sim.run(1500, control=CellControl.strain_rate(0.1), output_every=10**9)
     with_partners(sim, partner_table(pairs[::2], 30, layout.PARTNER_COLUMNS))
-    static(sim)
+    make_static(sim)
     snap = sim.snapshot()
     free = dataclasses.replace(snap, attraction_partners=None)
     cut = {tuple(p) for p in forcelaw.attracting_rod_pairs(free)} - {tuple(p) for p in pairs[::2]}
@@ -244,7 +235,7 @@ def test_the_protocol_sets_the_partners_at_a_and_keeps_them(tmp_path):
     np.testing.assert_array_equal(
         at_b.get_state()["attraction_partners"], arrays["attraction_partners"]
     )
-    static(at_b)
+    make_static(at_b)
     snap = at_b.snapshot()
     assert snap.attraction_partners is not None
     energy = forcelaw.potential_energy(snap).long_range

@@ -314,13 +314,19 @@ def jammed_network(scene) -> Simulation:
 
     sim = Simulation(scene)
     sim.run(4000, control=CellControl.strain_rate(0.1), output_every=10**9)
+    make_static(sim)
+    return sim
+
+
+def make_static(sim: Simulation) -> None:
+    """``sim`` made a static network: velocities and the affine flow zeroed, the forces
+    recomputed."""
     state = sim.get_state()
     state["velocity"][:] = 0.0
     state["angular_velocity"][:] = 0.0
     state["params"][[layout.P_RATE_X, layout.P_RATE_Y]] = 0.0  # no affine flow: a static network
     sim.set_state(state)
     sim.recompute_forces()
-    return sim
 
 
 def test_engine_forces_match_the_numpy_reference_on_a_dense_network():
