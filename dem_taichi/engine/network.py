@@ -74,6 +74,7 @@ def network_snapshot(
     rolling_springs: np.ndarray | None = None,
     rod_strength: np.ndarray | None = None,
     attraction_partners: np.ndarray | None = None,
+    cap_force: str = "contact",
 ) -> NetworkSnapshot:
     """The snapshot of the interacting ``entries`` (:func:`interacting_entries`): disc positions
     ``disc_x`` (M, 2), list springs ξ (M, K), cell ``lengths``, wrapped centroids and angles,
@@ -132,4 +133,5 @@ def network_snapshot(
         rolling_cap=params.rolling_cap if psi is not None else 0.0,
         rod_strength=rod_strength,
         attraction_partners=attraction_partners,
+        cap_force=cap_force,
     )

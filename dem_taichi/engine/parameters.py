@@ -57,7 +57,9 @@ class Physics:
     ``strength``: the rods' long-range strengths differ (``[long_range] strength_spread`` > 0:
     :func:`dem_taichi.scene.geometry.rod_strengths`); ``partners``: from state A on, attraction
     only between rods that attracted each other at A (``[long_range] attraction_pairs =
-    "bonded_at_A"``: :meth:`dem_taichi.engine.simulation.Simulation.freeze_attraction`).
+    "bonded_at_A"``: :meth:`dem_taichi.engine.simulation.Simulation.freeze_attraction`);
+    ``net_caps``: the sliding and rolling caps from the contact force less the pair's attraction
+    (``[contact] cap_force = "net"``, with friction or rolling resistance and an attraction).
     """
 
     friction: bool
@@ -68,6 +70,7 @@ class Physics:
     rolling: bool = False
     strength: bool = False
     partners: bool = False
+    net_caps: bool = False
 
 
 def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics:
@@ -75,15 +78,19 @@ def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics
     need a charged species (``charge``, per place in the rod); ``n_spheres`` is n_s of a rod."""
     charged = bool(np.any(charge != 0))
     long_range = scene.long_range.enabled and charged
+    vdw = scene.van_der_waals.enabled and charged
+    friction = scene.contact.friction and scene.contact.k_t > 0
+    rolling = scene.rolling_parameters.enabled
     return Physics(
-        friction=scene.contact.friction and scene.contact.k_t > 0,
+        friction=friction,
         long_range=long_range,
-        vdw=scene.van_der_waals.enabled and charged,
+        vdw=vdw,
         bonded=scene.bonded,
         chain=n_spheres,
-        rolling=scene.rolling_parameters.enabled,
+        rolling=rolling,
         strength=long_range and scene.long_range.strength_spread > 0.0,
         partners=long_range and scene.long_range.attraction_pairs == "bonded_at_A",
+        net_caps=scene.contact.cap_force == "net" and (long_range or vdw) and (friction or rolling),
     )
 
 

@@ -127,51 +127,10 @@ def pair_interaction(
         ojy = disc_off[j, 1]
         bx = dx - oix + ojx
         by = dy - oiy + ojy
-        fn = 0.0
-        if delta > 0.0:
-            rod_i = i // ns
-            rod_j = j // ns
-            half = 0.5 * dist
-            # contact point relative to the two centroids (midpoint of the overlap)
-            cpx = oix - nx * half
-            cpy = oiy - ny * half
-            cqx = ojx + nx * half
-            cqy = ojy + ny * half
-            vrx = (vel[rod_i, 0] - omega[rod_i] * cpy) - (vel[rod_j, 0] - omega[rod_j] * cqy)
-            vry = (vel[rod_i, 1] + omega[rod_i] * cpx) - (vel[rod_j, 1] + omega[rod_j] * cqx)
-            # affine part of the relative velocity: D b with D = −diag(ε̇_xx, ε̇_yy)
-            vrx -= params[P_RATE_X] * bx
-            vry -= params[P_RATE_Y] * by
-            vn = vrx * nx + vry * ny
-            fc = contact_normal_force(delta, params[P_KN], vn, params[P_GN])
-            fn += fc
-            u_contact = 0.5 * params[P_KN] * delta * delta
-            if ti.static(phys.friction):
-                vt = -vrx * ny + vry * nx
-                xi = nbr_xi[i, k]
-                if ti.static(update):
-                    xi += vt * params[P_DT]
-                kt = params[P_KT]
-                ft, xi = tangential_force(xi, vt, kt, params[P_GT], params[P_MU] * ti.abs(fc))
-                if ti.static(update):
-                    nbr_xi[i, k] = xi
-                u_contact += 0.5 * kt * xi * xi
-            if ti.static(phys.rolling):
-                w_rel = omega[rod_i] - omega[rod_j]
-                psi = nbr_psi[i, k]
-                if ti.static(update):
-                    psi += w_rel * params[P_DT]
-                kr = params[P_ROLL_K]
-                cap_r = params[P_ROLL_CAP] * ti.abs(fc)
-                m_roll, psi = tangential_force(psi, w_rel, kr, params[P_ROLL_G], cap_r)
-                if ti.static(update):
-                    nbr_psi[i, k] = psi
-                u_contact += 0.5 * kr * psi * psi
-        else:
-            if ti.static(phys.friction and update):
-                nbr_xi[i, k] = 0.0
-            if ti.static(phys.rolling and update):
-                nbr_psi[i, k] = 0.0
+        # the long-range and van der Waals forces first: with [contact] cap_force = "net" the
+        # caps take the pair's attraction off the contact force; fn sums f_c, f_l, f_w in order
+        f_l = 0.0
+        f_w = 0.0
         if ti.static(phys.long_range or phys.vdw):
             si = i % phys.chain
             sj = j % phys.chain
@@ -206,7 +165,6 @@ def pair_interaction(
                                     s_f = 0.0
                                     s_k = 0.0
                     f_l = long_range_force(gap, s_f, s_k, g_max)
-                    fn += f_l
                     if f_l != 0.0:
                         long_active = 1
                     if ti.static(not update):
@@ -216,11 +174,62 @@ def pair_interaction(
                     fw = params[P_VDW_F]
                     kw = params[P_VDW_K]
                     f_w = long_range_force(gap, -fw, -kw, fw / kw)
-                    fn += f_w
                     if f_w != 0.0:
                         long_active = 1
                     if ti.static(not update):
                         u_long += long_range_energy(gap, -fw, -kw, fw / kw)
+        fn = 0.0
+        if delta > 0.0:
+            rod_i = i // ns
+            rod_j = j // ns
+            half = 0.5 * dist
+            # contact point relative to the two centroids (midpoint of the overlap)
+            cpx = oix - nx * half
+            cpy = oiy - ny * half
+            cqx = ojx + nx * half
+            cqy = ojy + ny * half
+            vrx = (vel[rod_i, 0] - omega[rod_i] * cpy) - (vel[rod_j, 0] - omega[rod_j] * cqy)
+            vry = (vel[rod_i, 1] + omega[rod_i] * cpx) - (vel[rod_j, 1] + omega[rod_j] * cqx)
+            # affine part of the relative velocity: D b with D = −diag(ε̇_xx, ε̇_yy)
+            vrx -= params[P_RATE_X] * bx
+            vry -= params[P_RATE_Y] * by
+            vn = vrx * nx + vry * ny
+            fc = contact_normal_force(delta, params[P_KN], vn, params[P_GN])
+            fn += fc
+            u_contact = 0.5 * params[P_KN] * delta * delta
+            cap_load = ti.abs(fc)
+            if ti.static(phys.net_caps):
+                cap_load = ti.max(cap_load + ti.min(f_l, 0.0) + ti.min(f_w, 0.0), 0.0)
+            if ti.static(phys.friction):
+                vt = -vrx * ny + vry * nx
+                xi = nbr_xi[i, k]
+                if ti.static(update):
+                    xi += vt * params[P_DT]
+                kt = params[P_KT]
+                ft, xi = tangential_force(xi, vt, kt, params[P_GT], params[P_MU] * cap_load)
+                if ti.static(update):
+                    nbr_xi[i, k] = xi
+                u_contact += 0.5 * kt * xi * xi
+            if ti.static(phys.rolling):
+                w_rel = omega[rod_i] - omega[rod_j]
+                psi = nbr_psi[i, k]
+                if ti.static(update):
+                    psi += w_rel * params[P_DT]
+                kr = params[P_ROLL_K]
+                cap_r = params[P_ROLL_CAP] * cap_load
+                m_roll, psi = tangential_force(psi, w_rel, kr, params[P_ROLL_G], cap_r)
+                if ti.static(update):
+                    nbr_psi[i, k] = psi
+                u_contact += 0.5 * kr * psi * psi
+        else:
+            if ti.static(phys.friction and update):
+                nbr_xi[i, k] = 0.0
+            if ti.static(phys.rolling and update):
+                nbr_psi[i, k] = 0.0
+        if ti.static(phys.long_range):
+            fn += f_l
+        if ti.static(phys.vdw):
+            fn += f_w
         fx = fn * nx - ft * ny
         fy = fn * ny + ft * nx
         half = 0.5 * dist

@@ -54,6 +54,7 @@ __all__ = [
     "PotentialEnergy",
     "attracting_rod_pairs",
     "branch_vectors",
+    "cap_force",
     "contact_normal_force",
     "contact_normal_stiffness",
     "contact_potential",
@@ -192,6 +193,22 @@ def van_der_waals_stiffness(gap, f_w: float, k_w: float, both_charged):
 def van_der_waals_potential(gap, f_w: float, k_w: float, both_charged):
     """vdW energy (the long-range potential with s = -1), f = -dU/dg."""
     return long_range_potential(gap, f_w, k_w, -np.asarray(both_charged, dtype=float))
+
+
+def cap_force(law: str, contact_force, long_range_force=0.0, van_der_waals_force=0.0):
+    """The normal force behind the sliding cap μ|f| and the rolling cap μ_r d_eff |f| [M §1.2]:
+    ``law`` "contact": |f_c|, the contact spring's force, which an attraction loads (MercuryDPM's
+    laws, the study's); "net": max(|f_c| − F_att, 0) with F_att = −min(f_LR, 0) − min(f_W, 0)
+    the pair's attraction, so an attraction holds a contact shut but adds no strength (a
+    departure from the study's laws: [contact] cap_force). Repulsion leaves the caps as they are.
+    """
+    contact = np.abs(np.asarray(contact_force, dtype=float))
+    if law == "contact":
+        return contact
+    if law != "net":
+        raise ValueError(f"cap_force law {law!r}: allowed 'contact' or 'net'")
+    attraction = np.minimum(long_range_force, 0.0) + np.minimum(van_der_waals_force, 0.0)
+    return np.maximum(contact + attraction, 0.0)
 
 
 def tangential_force(spring, normal, k_t: float, mu: float, contact_force, tangential_velocity=0.0,
@@ -416,6 +433,7 @@ def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
     f = f_c + f_LR + f_W along n; F_t = -k_t ξ_t capped at μ f_c for contacts (ξ_t: the snapshot's
     spring projected on the tangent plane), zero for non-contacts; the rolling couple
     M = −κ_r ψ capped at μ_r d_eff f_c at contacts (at the cap within 1e-6: ``rolling_sliding``).
+    With ``snapshot.cap_force == "net"`` both caps use :func:`cap_force`'s load instead of f_c.
     """
     separation = pair_separation(snapshot)
     distance = np.linalg.norm(separation, axis=-1)
@@ -436,8 +454,9 @@ def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
         + long_range_stiffness(gap, params.f_max, params.k_a, params.charge_product)
         + van_der_waals_stiffness(gap, snapshot.vdw_f_max, snapshot.vdw_k, params.both_charged)
     )
+    cap_load = cap_force(snapshot.cap_force, f_contact, f_long, f_vdw)
     f_tangential, sliding = tangential_force(
-        snapshot.tangential_spring, normal, snapshot.k_t, snapshot.mu, f_contact
+        snapshot.tangential_spring, normal, snapshot.k_t, snapshot.mu, cap_load
     )
     f_tangential = np.where(in_contact[:, None], f_tangential, 0.0)
     sliding = sliding & in_contact
@@ -447,9 +466,9 @@ def pair_forces(snapshot: NetworkSnapshot) -> PairForces:
         snapshot.rod_position, snapshot.rod_angle, snapshot.n_spheres, snapshot.spacing
     )
     kappa, cap = snapshot.rolling_stiffness, snapshot.rolling_cap
-    moment, _, _ = rolling_moment(snapshot.pair_rolling_spring, 0.0, kappa, 0.0, cap, f_contact)
+    moment, _, _ = rolling_moment(snapshot.pair_rolling_spring, 0.0, kappa, 0.0, cap, cap_load)
     moment = np.where(in_contact, moment, 0.0)
-    limit = cap * np.abs(f_contact)
+    limit = cap * np.abs(cap_load)
     rolling_sliding = in_contact & (kappa > 0.0) & (np.abs(moment) >= limit * (1.0 - 1e-6))
     return PairForces(
         separation=separation,

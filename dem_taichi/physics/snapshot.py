@@ -107,6 +107,9 @@ class NetworkSnapshot:
             as for ``rod_strength``): an attractive pair acts only between partners of a rod
             whose row is set ([long_range] attraction_pairs = "bonded_at_A",
             :mod:`dem_taichi.physics.attraction`); None: every pair attracts.
+        cap_force: the normal force behind the sliding and rolling caps at contacts: "contact"
+            the contact spring's f_c; "net" max(f_c − F_att, 0), F_att the pair's attraction
+            (long-range and van der Waals) ([contact] cap_force).
     """
 
     cell_lengths: np.ndarray
@@ -135,6 +138,7 @@ class NetworkSnapshot:
     rolling_cap: float = 0.0
     rod_strength: np.ndarray | None = None
     attraction_partners: np.ndarray | None = None
+    cap_force: str = "contact"
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -210,6 +214,11 @@ class NetworkSnapshot:
                     "< the number of columns"
                 )
             put(self, "attraction_partners", table)
+
+        if self.cap_force not in ("contact", "net"):
+            raise ValueError(
+                f"NetworkSnapshot.cap_force = {self.cap_force!r}: allowed 'contact' or 'net'"
+            )
 
         pair_i = _as_array("pair_i", self.pair_i, np.int64, (-1,))
         n_pairs = pair_i.shape[0]

@@ -120,6 +120,19 @@ class Contact(SceneSection):
             unit="force·time/length",
         ),
     )
+    cap_force: str = field(
+        default="contact",
+        metadata=_choices(
+            "contact",
+            "net",
+            doc="the normal force behind the sliding cap μ|f| and the rolling cap μ_r (d/2)|f| "
+            "at inter-rod contacts: 'contact' the contact spring's force f_c, which the "
+            "attraction loads (MercuryDPM's laws, as in the study); 'net' max(f_c − F_att, 0), "
+            "F_att the pair's attraction (long-range and van der Waals): the attraction holds "
+            "a contact shut but adds no strength (a departure from the study's laws)",
+            unit="-",
+        ),
+    )
 
     def check(self) -> None:
         if self.e_n is not None and self.gamma_n is not None:
