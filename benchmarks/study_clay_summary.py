@@ -78,6 +78,7 @@ EXPERIMENTS = (
     ("study_clay_rolling_cells.csv", "study_clay_rolling.sh", "study_clay_rolling.md"),
     ("study_clay_partners_cells.csv", "study_clay_partners.sh", "study_clay_partners.md"),
     ("study_clay_partners_mkba_cells.csv", "study_clay_partners.sh", "study_clay_partners.md"),
+    ("study_clay_caps_cells.csv", "study_clay_caps.sh", "study_clay_caps.md"),
 )
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
@@ -139,7 +140,12 @@ of their bonded rod pairs from A to B and add 40–46 % new ones (`bond_turnover
 bonds after A (BA, `study_clay_partners`, A bit for bit SP05iso's) λ* rises by +0.018 ± 0.018
 (to 0.203, resolved at the edge) and K0 and the finding along K0 do not move: the bonds formed
 on the way account for a small part of the gap; on the μ 0.25 material (MKBA) it adds nothing
-on the mapped window (+0.003 ± 0.017) and softens the gel out of the stiffness band. The TIV
+on the mapped window (+0.003 ± 0.017) and softens the gel out of the stiffness band. Contacts
+whose caps leave out the attraction (NC, `[contact] cap_force = "net"`, `study_clay_caps`, an
+option of ours) lower λ* on every seed (−0.030 ± 0.025, to 0.155) and leave the stiffness band:
+the gel folds while it ages and jams at A at the frictionless isostatic coordination (Z_m ≈
+6.1, v_A 4.5 against 6.6), so the attraction's share of a joint's strength is what makes the
+gel loose at A as well as what keeps it stiff just after A. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
