@@ -9,16 +9,20 @@ own.
 engine then integrates the call with the scene's ``[integration] relaxation``: the damped
 dynamics (the default "damped", the same steps as :meth:`CellControl.fixed`, bit for bit) or
 the FIRE minimiser ("fire", :mod:`dem_taichi.kernels.fire`).
+
+:func:`step_count` checks the step counts a run is given (a clear error, not a silent no-op).
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-__all__ = ["AxisControl", "CellControl"]
+__all__ = ["AxisControl", "CellControl", "step_count"]
 
 
 @dataclass(frozen=True)
@@ -87,3 +91,20 @@ class CellControl:
     def rates(self) -> np.ndarray:
         """(ε̇_xx, ε̇_yy)."""
         return np.array([self.x.value, self.y.value], dtype=float)
+
+
+def step_count(name: str, value: Any, low: int) -> int:
+    """``value`` as a number of steps >= ``low``: an integer (numpy's too), or a float with a
+    whole value such as ``1e4``; a ``ValueError`` naming ``name`` otherwise (NaN, inf, 2.5, a
+    bool or a string would make :meth:`Simulation.run` do nothing, or loop, without a word)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r}: must be an integer >= {low}")
+    if isinstance(value, numbers.Integral):
+        count = int(value)
+    elif math.isfinite(value) and float(value).is_integer():
+        count = int(float(value))
+    else:
+        raise ValueError(f"{name} = {value!r}: must be a whole number of steps >= {low}")
+    if count < low:
+        raise ValueError(f"{name} = {value!r} is out of range: allowed integers >= {low}")
+    return count

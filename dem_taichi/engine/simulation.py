@@ -32,27 +32,17 @@ Execution
 ``execution`` ("serial" | "parallel" | "gather" | "auto") and ``list_build`` choose the kernels
 that advance the state: :mod:`dem_taichi.engine.launcher` says which and why.
 
-Cell control
-------------
-Each axis is strain-controlled: a prescribed logarithmic strain rate ε̇ = −L̇/L (compression
-positive, 0 = fixed), applied exactly (L = L_0 exp(−ε̇ t)). Stresses are held by the
-protocol's servo (:class:`dem_taichi.protocol.servo.StressServo`), which sets these rates from the
-measured response; the engine has no servo of its own.
-
-Relaxations
------------
-``CellControl.relaxation(stage)`` holds the cell and marks the call as a minimisation. With
-``[integration] relaxation = "damped"`` (the default) it runs exactly the steps of
-``CellControl.fixed(stage)``; with ``"fire"`` (serial execution only) the call runs the FIRE
-minimiser (:mod:`dem_taichi.kernels.fire`, a kernel compiled only then): a new minimisation from
-the current state at every such call, Δt between the scene's and ``fire_dt_max`` × Δt within
-the call, the scene's Δt after it; ``sim.fire_status()`` reports its last Δt, α and resets.
+Cell control and relaxations
+----------------------------
+A :class:`CellControl` prescribes a logarithmic strain rate per axis (stresses are held by the
+protocol's servo) or marks a call as a relaxation, integrated with ``[integration] relaxation``
+("damped" or "fire"; ``sim.fire_status()`` reports FIRE's last Δt, α and resets):
+:mod:`dem_taichi.engine.control` says how.
 """
 
 from __future__ import annotations
 
 import math
-import numbers
 import time as _time
 from collections.abc import Callable
 from pathlib import Path
@@ -60,7 +50,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from dem_taichi.engine.control import AxisControl, CellControl
+from dem_taichi.engine.control import AxisControl, CellControl, step_count
 from dem_taichi.engine.device_allocation import (
     allocate_arrays,
     grow_arrays,
@@ -106,23 +96,6 @@ __all__ = [
     "BlowUpError",
     "CapacityError",
 ]
-
-
-def step_count(name: str, value: Any, low: int) -> int:
-    """``value`` as a number of steps >= ``low``: an integer (numpy's too), or a float with a
-    whole value such as ``1e4``; a ``ValueError`` naming ``name`` otherwise (NaN, inf, 2.5, a
-    bool or a string would make :meth:`Simulation.run` do nothing, or loop, without a word)."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} = {value!r}: must be an integer >= {low}")
-    if isinstance(value, numbers.Integral):
-        count = int(value)
-    elif math.isfinite(value) and float(value).is_integer():
-        count = int(float(value))
-    else:
-        raise ValueError(f"{name} = {value!r}: must be a whole number of steps >= {low}")
-    if count < low:
-        raise ValueError(f"{name} = {value!r} is out of range: allowed integers >= {low}")
-    return count
 
 
 class Simulation:
