@@ -59,7 +59,9 @@ class Physics:
     only between rods that attracted each other at A (``[long_range] attraction_pairs =
     "bonded_at_A"``: :meth:`dem_taichi.engine.simulation.Simulation.freeze_attraction`);
     ``net_caps``: the sliding and rolling caps from the contact force less the pair's attraction
-    (``[contact] cap_force = "net"``, with friction or rolling resistance and an attraction).
+    (``[contact] cap_force = "net"`` or ``"net_after_A"``, with friction or rolling resistance
+    and an attraction; with ``"net_after_A"`` the kernels compile it only from state A on,
+    :meth:`dem_taichi.engine.simulation_state.SimulationState.kernel_physics`).
     """
 
     friction: bool
@@ -90,7 +92,9 @@ def resolve_physics(scene: Scene, charge: np.ndarray, n_spheres: int) -> Physics
         rolling=rolling,
         strength=long_range and scene.long_range.strength_spread > 0.0,
         partners=long_range and scene.long_range.attraction_pairs == "bonded_at_A",
-        net_caps=scene.contact.cap_force == "net" and (long_range or vdw) and (friction or rolling),
+        net_caps=(
+            scene.contact.cap_force != "contact" and (long_range or vdw) and (friction or rolling)
+        ),
     )
 
 

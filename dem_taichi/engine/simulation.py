@@ -180,6 +180,7 @@ class Simulation:
         self.state_io = SimulationState(
             self.a, self._launch, self._grow, scene.particles.rod_model, self.body, self.physics,
             self.full_list, self.n_rods, self.n_discs, self.n_bodies, self._real,
+            net_caps_from_start=scene.contact.cap_force == "net",
         )  # fmt: skip
         upload_gas(self.a, gas, self._real, self.geometry.length, self.list_radius)
         self.reference_lengths = np.array(gas.cell_lengths, dtype=np.float64)
@@ -437,6 +438,15 @@ class Simulation:
         self.state_io.set_partners(pairs)
         self._sync_kernel_physics()
         return pairs
+
+    def drop_attraction_caps(self) -> None:
+        """From now on the contacts' sliding and rolling caps leave out the pair's attraction
+        (``[contact] cap_force = "net_after_A"``, called by the protocol at state A). The state's
+        configuration and force arrays are kept, as by :meth:`freeze_attraction`: the next step
+        evaluates the forces under the new caps (measures do at once). The switch is part of the
+        state and its checkpoints. ValueError for a scene without the option."""
+        self.state_io.drop_attraction_caps()
+        self._sync_kernel_physics()
 
     def _launch(self, kernel, **scalars) -> None:
         """Call ``kernel`` with its scalars and the device arrays its parameters name

@@ -75,6 +75,7 @@ class SimulationState:
         n_discs: int,
         n_bodies: int,
         real: type[np.floating],
+        net_caps_from_start: bool = True,
     ) -> None:
         self.a = arrays
         self._launch = launch
@@ -85,11 +86,18 @@ class SimulationState:
         self.full_list = full_list
         self.n_rods, self.n_discs, self.n_bodies = n_rods, n_discs, n_bodies
         self._real = real
+        #: whether the net caps act now (``[contact] cap_force``): from the start with "net",
+        #: from state A on with "net_after_A" (:meth:`drop_attraction_caps`); a state key
+        #: ``net_caps_on`` of the scenes that have the switch, and only of them
+        self.net_caps_on = physics.net_caps and net_caps_from_start
+        self._net_caps_from_start = net_caps_from_start
 
     def get_state(self, step: int, reference_lengths: np.ndarray) -> dict[str, np.ndarray]:
         """Numpy copies of the full state at ``step`` with the strain ``reference_lengths``
         (see :mod:`dem_taichi.engine.state`)."""
         state = {key: self.a[name].to_numpy() for name, key in _STATE_KEYS}
+        if self.physics.net_caps:
+            state["net_caps_on"] = np.array(self.net_caps_on)
         return state | {
             "reference_lengths": reference_lengths.copy(),
             "step": np.array(step, dtype=np.int64),
@@ -121,6 +129,8 @@ class SimulationState:
         a = self.a
         for name, key in _STATE_KEYS:
             a[name].from_numpy(np.ascontiguousarray(state[key]))
+        if self.physics.net_caps:  # a state without the key: the scene's start
+            self.net_caps_on = bool(state.get("net_caps_on", self._net_caps_from_start))
         params = EngineParameters.from_vector(state["params"])
         restored = RestoredState(
             step=int(state["step"]),
@@ -148,15 +158,29 @@ class SimulationState:
             partner_table(pairs, self.n_rods, L.PARTNER_COLUMNS)
         )
 
+    def drop_attraction_caps(self) -> None:
+        """From now on the net caps act (``[contact] cap_force = "net_after_A"`` at state A)."""
+        if not self.physics.net_caps:
+            raise ValueError(
+                "drop_attraction_caps needs [contact] cap_force = 'net_after_A' (with friction "
+                "or rolling resistance, and an attraction)"
+            )
+        self.net_caps_on = True
+
     def kernel_physics(self) -> Physics:
         """The switches the kernels run with: the scene's, except that attraction partners
         (``[long_range] attraction_pairs = "bonded_at_A"``) compile in only once they are set:
         until state A every pair attracts, and the kernels are then those of the scene without
         the option, so the gas, its ageing and A are the same bit for bit (a kernel compiled
         with the partner test rounds its sums in another order)."""
-        if self.physics.partners and self.partner_pairs() is None:
-            return dataclasses.replace(self.physics, partners=False)
-        return self.physics
+        physics = self.physics
+        if physics.partners and self.partner_pairs() is None:
+            physics = dataclasses.replace(physics, partners=False)
+        if physics.net_caps and not self.net_caps_on:
+            # [contact] cap_force = "net_after_A" before A: the study's caps, and the kernels
+            # of the scene without the switch
+            physics = dataclasses.replace(physics, net_caps=False)
+        return physics
 
     def forget_contacts(self, time: float) -> None:
         """Empty the neighbour lists with their tangential and rolling springs (the contacts

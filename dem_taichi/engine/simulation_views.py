@@ -292,5 +292,5 @@ class SimulationViews:
             attraction_partners=(
                 self.a["attraction_partners"].to_numpy() if self.physics.partners else None
             ),
-            cap_force="net" if self.physics.net_caps else "contact",
+            cap_force="net" if self.kernel_physics.net_caps else "contact",
         )

@@ -125,11 +125,14 @@ class Contact(SceneSection):
         metadata=_choices(
             "contact",
             "net",
+            "net_after_A",
             doc="the normal force behind the sliding cap μ|f| and the rolling cap μ_r (d/2)|f| "
             "at inter-rod contacts: 'contact' the contact spring's force f_c, which the "
             "attraction loads (MercuryDPM's laws, as in the study); 'net' max(f_c − F_att, 0), "
             "F_att the pair's attraction (long-range and van der Waals): the attraction holds "
-            "a contact shut but adds no strength (a departure from the study's laws)",
+            "a contact shut but adds no strength (a departure from the study's laws); "
+            "'net_after_A' the study's caps up to state A, 'net' from A on (a diagnostic: every "
+            "joint of the gel loses the attraction's share of its strength at A)",
             unit="-",
         ),
     )

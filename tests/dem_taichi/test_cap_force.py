@@ -120,3 +120,59 @@ def test_the_switch_compiles_in_only_where_it_acts():
     assert not Simulation(frictionless, initial=gas).physics.net_caps  # no cap
     with pytest.raises(SceneError, match="cap_force"):
         scene_from_toml('[contact]\ncap_force = "attraction"')
+
+
+def _same_state(a: dict, b: dict) -> None:
+    for key in sorted(set(a) & set(b)):
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_net_after_a_is_the_study_law_until_switched_then_the_net_law(tmp_path):
+    """``"net_after_A"``: compressed into a packing bit for bit as under ``"contact"`` (the
+    kernels compile without the switch, no state key is read); once switched (the protocol does
+    it at A), the kernels, the snapshot and the measures use the net caps, the engine equals the
+    numpy law, and the switch travels with the state and a checkpoint."""
+    study = jammed_network(dense("contact"))
+    after = jammed_network(dense("net_after_A"))
+    assert after.physics.net_caps and not after.kernel_physics.net_caps
+    _same_state(study.get_state(), after.get_state())
+    assert not after.get_state()["net_caps_on"] and "net_caps_on" not in study.get_state()
+    assert after.snapshot().cap_force == "contact"
+    after.drop_attraction_caps()
+    assert after.kernel_physics.net_caps and after.get_state()["net_caps_on"]
+    after.recompute_forces()
+    snap = after.snapshot()
+    assert snap.cap_force == "net"
+    assert_engine_matches_reference(after, snap)
+    net = Simulation(dense("net"))
+    net.set_state(after.get_state())
+    make_static(net)
+    np.testing.assert_array_equal(net.get_state()["force"], after.get_state()["force"])
+    again = Simulation.from_checkpoint(after.save_checkpoint(tmp_path / "a.npz"))
+    assert again.kernel_physics.net_caps  # a state past A keeps the net caps
+    fresh = Simulation(dense("net_after_A"))
+    fresh.set_state(study.get_state())  # a state without the key: not switched
+    assert not fresh.kernel_physics.net_caps
+    with pytest.raises(ValueError, match="cap_force = 'net_after_A'"):
+        study.drop_attraction_caps()
+
+
+def test_the_protocol_switches_the_caps_at_a(tmp_path):
+    """The smoke protocol's A→B with ``"net_after_A"``: state A is the study law's bit for bit
+    (configuration), it carries the switch, and so does state B."""
+    from dem_taichi.io.checkpoint import load_checkpoint
+    from dem_taichi.protocol.runner import run_protocol
+
+    from .test_protocol import smoke_protocol_scene
+
+    scene = smoke_protocol_scene(run_k0=False, run_unloading=False, radial_stress_ratios="")
+    scene = scene.replace(contact={"rolling_stiffness": 2.0e4, "rolling_friction": 0.5})
+    study = run_protocol(scene, tmp_path / "study")
+    after = run_protocol(scene.replace(contact={"cap_force": "net_after_A"}), tmp_path / "after")
+    a_study, _ = load_checkpoint(study.files["state_A"])
+    a_after, _ = load_checkpoint(after.files["state_A"])
+    assert bool(a_after["net_caps_on"]) and "net_caps_on" not in a_study
+    for key in ("reduced_position", "angle", "velocity", "tangential_spring", "cell"):
+        np.testing.assert_array_equal(a_after[key], a_study[key], err_msg=key)
+    at_b = Simulation.from_checkpoint(after.files["state_B"])
+    assert at_b.kernel_physics.net_caps
