@@ -441,7 +441,8 @@ class Simulation:
 
     def drop_attraction_caps(self) -> None:
         """From now on the contacts' sliding and rolling caps leave out the pair's attraction
-        (``[contact] cap_force = "net_after_A"``, called by the protocol at state A). The state's
+        (``[contact] cap_force = "net_after_A"``, called by the protocol as each path leaves
+        state A). The state's
         configuration and force arrays are kept, as by :meth:`freeze_attraction`: the next step
         evaluates the forces under the new caps (measures do at once). The switch is part of the
         state and its checkpoints. ValueError for a scene without the option."""

@@ -385,6 +385,10 @@ class ProtocolRunner:
         if self.state_A is None:
             raise ProtocolError("state A is not known yet: run compress_to_transition first")
         self.sim.set_state(self.state_A)
+        if self.sim.scene.contact.cap_force == "net_after_A" and self.sim.physics.net_caps:
+            # a diagnostic of issue 19: from A on every joint loses the attraction's share of its
+            # strength; A itself (its record, probes and file) is the study's caps'
+            self.sim.drop_attraction_caps()
         # each path from A keeps its own output cadence and starts the servo afresh (the time
         # constants it doubled while hunting): the same whether the paths run one after the other,
         # in parallel processes or resumed

@@ -147,10 +147,6 @@ def compress_to_transition(runner) -> RelaxedState:
                 f"{error}: use attraction_pairs = 'any', or a shorter range g_max"
             ) from error
         runner._say(f"[A] attraction kept between the {len(bonded)} rod pairs bonded at A")
-    if sim.scene.contact.cap_force == "net_after_A" and sim.physics.net_caps:
-        # a diagnostic of issue 19: every joint loses the attraction's share of its strength
-        sim.drop_attraction_caps()
-        runner._say("[A] contact caps from the net load from here on (cap_force = net_after_A)")
     a_measures = sim.measure()
     if runner.history is not None:
         runner.history.append(a_measures)
