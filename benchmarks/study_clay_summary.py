@@ -145,7 +145,10 @@ whose caps leave out the attraction (NC, `[contact] cap_force = "net"`, `study_c
 option of ours) lower λ* on every seed (−0.030 ± 0.025, to 0.155) and leave the stiffness band:
 the gel folds while it ages and jams at A at the frictionless isostatic coordination (Z_m ≈
 6.1, v_A 4.5 against 6.6), so the attraction's share of a joint's strength is what makes the
-gel loose at A as well as what keeps it stiff just after A. The TIV
+gel loose at A as well as what keeps it stiff just after A. Taking it away at A (NCA,
+`"net_after_A"`, A bit for bit SP05iso's) collapses the gel in the first increment and lowers λ*
+too (−0.031 ± 0.028, to 0.154); it ends at 100 kPa where NC ends (v 2.44 against 2.41): the caps
+move the loose end of the path, not the dense one, so no brittle-joint law is built. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
