@@ -40,6 +40,7 @@ class DelayedPlant:
             time_step=TIME_STEP,
             control=SimpleNamespace(inertial_number_max=1.0),
             output=SimpleNamespace(every=10**9),
+            contact=SimpleNamespace(cap_force="contact"),  # the study's caps throughout
         )
         self.geometry = SimpleNamespace(mass=1.0, solid_area=1.0, diameter=1.0)
 
