@@ -86,8 +86,9 @@ class SimulationState:
         self.full_list = full_list
         self.n_rods, self.n_discs, self.n_bodies = n_rods, n_discs, n_bodies
         self._real = real
-        #: whether the net caps act now (``[contact] cap_force``): from the start with "net",
-        #: from state A on with "net_after_A" (:meth:`drop_attraction_caps`); a state key
+        #: whether the net caps act now (``[contact] cap_force``): from the start with "net"
+        #: (``net_caps_from_start``), from state A on with "net_after_A"
+        #: (:meth:`drop_attraction_caps`); a state key
         #: ``net_caps_on`` of the scenes that have the switch, and only of them
         self.net_caps_on = physics.net_caps and net_caps_from_start
         self._net_caps_from_start = net_caps_from_start
@@ -159,7 +160,8 @@ class SimulationState:
         )
 
     def drop_attraction_caps(self) -> None:
-        """From now on the net caps act (``[contact] cap_force = "net_after_A"`` at state A)."""
+        """From now on the net caps act (``[contact] cap_force = "net_after_A"``: the protocol
+        calls it as each path leaves state A)."""
         if not self.physics.net_caps:
             raise ValueError(
                 "drop_attraction_caps needs [contact] cap_force = 'net_after_A' (with friction "
@@ -172,7 +174,9 @@ class SimulationState:
         (``[long_range] attraction_pairs = "bonded_at_A"``) compile in only once they are set:
         until state A every pair attracts, and the kernels are then those of the scene without
         the option, so the gas, its ageing and A are the same bit for bit (a kernel compiled
-        with the partner test rounds its sums in another order)."""
+        with the partner test rounds its sums in another order). Likewise the net caps of
+        ``[contact] cap_force = "net_after_A"`` compile in only once switched on
+        (:meth:`drop_attraction_caps`)."""
         physics = self.physics
         if physics.partners and self.partner_pairs() is None:
             physics = dataclasses.replace(physics, partners=False)
