@@ -15,8 +15,9 @@ C − B, E_h/E_v at B′ and B′ − B (B's probe against B′'s), the fabric d
 specific-volume definitions, the largest contact overlap at the labelled states and, where the
 run saved its path states, over every saved state. A run's K0 path added later from its A
 (``<run>_k0.json`` beside the folder, ``benchmarks/paired_paths.py --from-run``) fills the C and
-B′ columns. Writes ``<out>.md`` and ``<out>.csv`` (per
-cell) and ``<out>_runs.csv`` (per run).
+B′ columns. ``--with-runs CSV`` adds the rows of an earlier ``<out>_runs.csv`` (runs whose
+folders were not kept) to the cells, so that new seeds extend earlier replicas. Writes
+``<out>.md`` and ``<out>.csv`` (per cell) and ``<out>_runs.csv`` (per run).
 """
 
 from __future__ import annotations
@@ -70,6 +71,21 @@ def run_row(folder: Path) -> dict:
     _add_paths_from_a(folder, row)
     row["max_overlap_all_states"] = _max_overlap_all_states(folder)
     return row
+
+
+def read_runs_csv(path: Path) -> list[dict]:
+    """The rows of an earlier ``<out>_runs.csv``: numbers as floats (an empty field is NaN),
+    ``converged`` as a bool and ``seed`` as an int, as :func:`run_row` gives them."""
+    rows = []
+    with path.open(newline="") as fh:
+        for raw in csv.DictReader(fh):
+            row: dict = {"cell": raw["cell"], "seed": int(raw["seed"])}
+            row["converged"] = {"True": True, "False": False}[raw["converged"]]
+            for key, _label, _digits in COLUMNS:
+                text = raw.get(key, "")
+                row[key] = float(text) if text not in ("", None) else math.nan
+            rows.append(row)
+    return rows
 
 
 def _number(value) -> float:
@@ -135,9 +151,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", type=Path, help="folder of <cell>_s<seed> run folders")
     parser.add_argument("--out", type=Path, default=HERE / "results" / "study_clay_pilots")
+    parser.add_argument(
+        "--with-runs",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="CSV",
+        help="an earlier <out>_runs.csv whose rows join the cells (repeatable; default: none)",
+    )
     args = parser.parse_args(argv)
     folders = sorted(p for p in args.runs.iterdir() if p.is_dir() and re.search(r"_s\d+$", p.name))
     rows = [run_row(p) for p in folders]
+    for earlier in args.with_runs:
+        known = {(r["cell"], r["seed"]) for r in rows}
+        for row in read_runs_csv(earlier):
+            if (row["cell"], row["seed"]) in known:
+                raise SystemExit(f"{earlier}: {row['cell']} seed {row['seed']} is also a folder")
+            rows.append(row)
     text, table = summarise(rows)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".md").write_text(text)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 
@@ -36,3 +37,31 @@ def test_the_added_k0_path_fills_c_and_b_prime(pilots, tmp_path):
     pilots._add_paths_from_a(tmp_path / "other_s2", untouched)  # no JSON: nothing changes
     assert untouched == {"ratio_B": 1.0, "minutes": 1.0}
     assert math.isnan(pilots._max_overlap_all_states(run))  # no path states saved
+
+
+def test_earlier_rows_join_the_new_runs_cells(pilots, tmp_path):
+    """``--with-runs``: the rows of an earlier ``_runs.csv`` (folders not kept) are read back as
+    numbers and summarised with the new folders' rows; a seed in both is refused."""
+    earlier = tmp_path / "earlier_runs.csv"
+    earlier.write_text(
+        "cell,seed,converged,lambda_window,ratio_C_minus_B,minutes\n"
+        "R,11,True,0.17,0.4,39.8\n"
+        "R,2,True,0.19,0.2,\n"
+        "R,12,False,,,\n"
+    )
+    rows = pilots.read_runs_csv(earlier)
+    assert [r["seed"] for r in rows] == [11, 2, 12]
+    assert rows[0]["converged"] is True and rows[2]["converged"] is False
+    assert rows[0]["lambda_window"] == 0.17 and math.isnan(rows[1]["minutes"])
+    assert math.isnan(rows[0]["v_A"])  # a column the earlier file lacks
+    runs = tmp_path / "runs"
+    (runs / "R_s3").mkdir(parents=True)  # a new seed that stopped: no summary.json
+    out = tmp_path / "out"
+    assert pilots.main([str(runs), "--with-runs", str(earlier), "--out", str(out)]) == 0
+    (cell,) = list(csv.DictReader((tmp_path / "out.csv").open()))
+    assert cell["seeds"] == "2,3,11,12" and cell["converged"] == "2/4"
+    assert float(cell["lambda_window"]) == pytest.approx(0.18)
+    assert float(cell["ratio_C_minus_B"]) == pytest.approx(0.3)
+    (runs / "R_s11").mkdir()
+    with pytest.raises(SystemExit, match="seed 11 is also a folder"):
+        pilots.main([str(runs), "--with-runs", str(earlier), "--out", str(out)])
