@@ -79,7 +79,19 @@ EXPERIMENTS = (
     ("study_clay_partners_cells.csv", "study_clay_partners.sh", "study_clay_partners.md"),
     ("study_clay_partners_mkba_cells.csv", "study_clay_partners.sh", "study_clay_partners.md"),
     ("study_clay_caps_cells.csv", "study_clay_caps.sh", "study_clay_caps.md"),
+    (
+        "study_scene_seven_seeds_cells.csv",
+        "sweeps/study_sp05_radial_more.toml, sweeps/study_sp05_radial_more2.toml",
+        "study_scene_seven_seeds.md",
+    ),
 )
+
+#: options of ``study_clay_pilots.py`` beyond ``--out`` for the tables that need them
+PILOT_OPTIONS = {
+    "study_scene_seven_seeds_cells.csv": (
+        "--with-runs benchmarks/results/study_scene_sp05_replicas_runs.csv"
+    ),
+}
 
 INTRO = """# Issue 19: the study's-clay experiments, every cell
 
@@ -148,7 +160,10 @@ the gel folds while it ages and jams at A at the frictionless isostatic coordina
 gel loose at A as well as what keeps it stiff just after A. Taking it away at A (NCA,
 `"net_after_A"`, A bit for bit SP05iso's) collapses the gel in the first increment and lowers λ*
 too (−0.031 ± 0.028, to 0.154); it ends at 100 kPa where NC ends (v 2.44 against 2.41): the caps
-move the loose end of the path, not the dense one, so no brittle-joint law is built. The TIV
+move the loose end of the path, not the dense one, so no brittle-joint law is built. The
+`study` scene over seven seeds (SP05R's three and seeds 3–6, `study_scene_seven_seeds`, criteria
+before the runs): λ* 0.181 ± 0.007, n 0.876 ± 0.026, E_v/p at B 135 ± 8, K0 at C 0.62 ± 0.07,
+C − B +0.45 ± 0.12 and B′ − B +0.51 ± 0.12 (positive on every seed), overlaps 6.2 % of d. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
 scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
@@ -229,15 +244,17 @@ def _commands() -> str:
     lines = ["", "## The commands that reproduce each table", ""]
     for table, script, _ in EXPERIMENTS:
         out = table.removesuffix(".csv")
-        if script.endswith(".toml"):  # a sweep: its members linked as <cell>_s<seed> in OUT
-            run = (
-                f"`python -m dem_taichi sweep run benchmarks/{script} --out SWEEP --n-workers 2` "
-                "from a frozen clone, the members linked as `<cell>_s<seed>` in OUT"
+        if script.endswith(".toml"):  # sweeps: their members linked as <cell>_s<seed> in OUT
+            runs = " and ".join(
+                f"`python -m dem_taichi sweep run benchmarks/{sweep} --out SWEEP --n-workers 2`"
+                for sweep in script.split(", ")
             )
+            run = f"{runs} from a frozen clone, the members linked as `<cell>_s<seed>` in OUT"
         else:
             run = f"`bash benchmarks/{script} OUT PY` from a frozen clone (one run at a time)"
+        options = f" {PILOT_OPTIONS[table]}" if table in PILOT_OPTIONS else ""
         lines.append(
-            f"- `{table}`: {run}, then `python benchmarks/study_clay_pilots.py OUT --out "
+            f"- `{table}`: {run}, then `python benchmarks/study_clay_pilots.py OUT{options} --out "
             f"benchmarks/results/{out}`."
         )
     lines.append("- this page: `python benchmarks/study_clay_summary.py` (reads the tables above).")

@@ -43,11 +43,11 @@ RESULTS = ROOT / "benchmarks" / "results"
 #: The replicas beside which the report sets this run (column title → the saved tables and the
 #: columns taken from each, all when None): the demo's scene over three seeds, as the scene is
 #: since 2026-12-03 (the sparser gas SP05: `study_demo_sp05_replicas.md`), and the `study` scene
-#: at the study's size over three seeds, the whole protocol with its radial paths and its
-#: isotropic path to 200 kPa (`study_scene_sp05_replicas.md`)
+#: at the study's size over seven seeds, the whole protocol with its radial paths and its
+#: isotropic path to 200 kPa (`study_scene_seven_seeds.md`)
 REFERENCES: dict[str, tuple[tuple[Path, tuple[str, ...] | None], ...]] = {
     "`study_demo`, 300 rods": ((RESULTS / "study_demo_sp05_replicas.csv", None),),
-    "`study`, 1520 rods": ((RESULTS / "study_scene_sp05_replicas.csv", None),),
+    "`study`, 1520 rods": ((RESULTS / "study_scene_seven_seeds_cells.csv", None),),
 }
 ISOTROPIC_P_MAX = 280.0  # kPa, safely below the v = 1 limit of Table 1 (p_c ≈ 286 kPa)
 K0_SIGMA_V_MAX = 250.0  # kPa
