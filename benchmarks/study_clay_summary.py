@@ -166,8 +166,9 @@ before the runs): λ* 0.181 ± 0.007, n 0.876 ± 0.026, E_v/p at B 135 ± 8, K0 
 C − B +0.45 ± 0.12 and B′ − B +0.51 ± 0.12 (positive on every seed), overlaps 6.2 % of d. The TIV
 calibration on the `study` replicas beside Table 1: `calibration_study/` (the elastic-servo
 replicas), `calibration_study_secant/` (the secant servo) and `calibration_study_sp05/` (the
-scene since the switch); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
-`figure2_study_sp05/`.
+scene since the switch), `calibration_study_seeds3to6/` (its seeds 3–6, the same parameters
+within the intervals); the study's Figure 2 on them: `figure2_study/`, `figure2_study_secant/`,
+`figure2_study_sp05/`, `figure2_study_seeds3to6/`.
 
 """
 
