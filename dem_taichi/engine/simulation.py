@@ -264,6 +264,15 @@ class Simulation:
         """Numpy copies of the full state (see :mod:`dem_taichi.engine.state`)."""
         return self.state_io.get_state(self.step, self.reference_lengths)
 
+    def velocities(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of the bodies' velocities and angular velocities (the thermostats' cheap
+        :meth:`get_state`; :meth:`SimulationState.velocities`)."""
+        return self.state_io.velocities()
+
+    def set_velocities(self, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
+        """Write the velocities alone (:meth:`SimulationState.set_velocities`)."""
+        self.state_io.set_velocities(velocity, angular_velocity)
+
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore a state from :meth:`get_state` (same scene and precision)."""
         restored = self.state_io.restore(state)

@@ -105,6 +105,28 @@ class SimulationState:
             "full_list": np.array(self.full_list),
         }
 
+    def velocities(self) -> tuple[np.ndarray, np.ndarray]:
+        """Numpy copies of the bodies' velocities ((N, 2), length/time) and angular velocities
+        ((N,), 1/time), as :meth:`get_state` has them, without copying the rest of the state."""
+        return self.a["vel"].to_numpy(), self.a["omega"].to_numpy()
+
+    def set_velocities(self, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
+        """Write the bodies' velocities and angular velocities and nothing else: what
+        :meth:`restore` of a state that differs from the current one only there does (the
+        positions, springs and lists are left as they are), at a fraction of its cost. Shapes
+        and precision as :meth:`velocities` gives them."""
+        for name, key, value in (
+            ("vel", "velocity", velocity),
+            ("omega", "angular_velocity", angular_velocity),
+        ):
+            array = self.a[name]
+            if value.shape != tuple(array.shape) or value.dtype != self._real:
+                raise ValueError(
+                    f"{key} of shape {value.shape} and type {value.dtype} does not fit this "
+                    f"simulation ({tuple(array.shape)}, {np.dtype(self._real)})"
+                )
+            array.from_numpy(np.ascontiguousarray(value))
+
     def restore(self, state: dict[str, np.ndarray]) -> RestoredState:
         """Restore a state from :meth:`get_state` (same scene and precision) into the arrays;
         returns the step, strain reference and rates it carries."""

@@ -72,18 +72,16 @@ def cluster_speed(sim: Simulation, speed: float, seed: int) -> float:
         raise ValueError(
             "aggregation_thermostat = 'clusters' needs rigid rods ([particles] rod_model = 'rigid')"
         )
-    state = sim.get_state()
-    velocity = np.asarray(state["velocity"], dtype=float)
+    velocity_now, omega_now = sim.velocities()
+    velocity = np.asarray(velocity_now, dtype=float)
     before = rms_velocity_component(velocity)
     rod_i, rod_j = sim.interacting_rod_pairs()
     labels = cluster_labels(sim.n_rods, rod_i, rod_j)
     rng = np.random.Generator(np.random.PCG64([int(seed), STREAM, int(sim.step)]))
     new, _ = cluster_velocities(velocity, labels, speed, rng)
-    omega = np.array(state["angular_velocity"], dtype=float)
+    omega = np.array(omega_now, dtype=float)
     free = np.bincount(labels)[labels] == 1
     spin = equipartition_spin(sim, speed)
     omega[free] = rng.normal(0.0, spin, size=int(free.sum()))
-    state["velocity"] = new.astype(state["velocity"].dtype)
-    state["angular_velocity"] = omega.astype(state["angular_velocity"].dtype)
-    sim.set_state(state)
+    sim.set_velocities(new.astype(velocity_now.dtype), omega.astype(omega_now.dtype))
     return before

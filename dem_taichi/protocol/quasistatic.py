@@ -154,18 +154,14 @@ def rescale_speed(sim: Simulation, speed: float) -> float:
     becomes ``speed``; returns the rms velocity component before (rods, or the discs of bonded
     rods).
 
-    A gas at rest (rms 0) is left as it is. The state is restored with the scaled velocities
-    (:meth:`Simulation.set_state`), so the run continues deterministically from it.
+    A gas at rest (rms 0) is left as it is. The scaled velocities are written back alone
+    (:meth:`Simulation.set_velocities`), so the run continues deterministically from them.
     """
-    state = sim.get_state()
-    velocity = state["velocity"]
+    velocity, omega = sim.velocities()
     before = rms_velocity_component(velocity)
     if before > 0.0:
         factor = speed / before
-        state["velocity"] = velocity * velocity.dtype.type(factor)
-        omega = state["angular_velocity"]
-        state["angular_velocity"] = omega * omega.dtype.type(factor)
-        sim.set_state(state)
+        sim.set_velocities(velocity * velocity.dtype.type(factor), omega * omega.dtype.type(factor))
     return before
 
 
@@ -182,17 +178,14 @@ def resample_speed(sim: Simulation, speed: float, seed: int) -> float:
     On bonded rods every disc is drawn on its own (the bonds are heated);
     :func:`dem_taichi.protocol.rod_thermostat.rod_speed` draws whole rods' rigid-body motions.
     """
-    state = sim.get_state()
-    velocity = state["velocity"]
+    velocity, omega = sim.velocities()
     before = rms_velocity_component(velocity)
     rng = np.random.Generator(np.random.PCG64([int(seed), RESAMPLE_STREAM, int(sim.step)]))
     drawn = rng.normal(0.0, speed, size=velocity.shape)
     drawn -= drawn.mean(axis=0, keepdims=True)
-    omega = state["angular_velocity"]
     spin = equipartition_spin(sim, speed)
-    state["velocity"] = drawn.astype(velocity.dtype)
-    state["angular_velocity"] = rng.normal(0.0, spin, size=omega.shape).astype(omega.dtype)
-    sim.set_state(state)
+    spun = rng.normal(0.0, spin, size=omega.shape)
+    sim.set_velocities(drawn.astype(velocity.dtype), spun.astype(omega.dtype))
     return before
 
 
@@ -215,17 +208,16 @@ def refresh_speed(sim: Simulation, speed: float, seed: int, keep: float) -> floa
     """
     if not 0.0 <= keep < 1.0:
         raise ValueError(f"keep = {keep!r}: allowed values are 0 <= keep < 1")
-    state = sim.get_state()
-    velocity = state["velocity"]
+    velocity, omega = sim.velocities()
     before = rms_velocity_component(velocity)
     rng = np.random.Generator(np.random.PCG64([int(seed), 0x4C414E47, int(sim.step)]))
     noise = rng.normal(0.0, speed, size=velocity.shape)
     noise -= noise.mean(axis=0, keepdims=True)
-    omega = state["angular_velocity"]
     spin = equipartition_spin(sim, speed)
     fresh = math.sqrt(1.0 - keep * keep)
-    state["velocity"] = (keep * velocity + fresh * noise).astype(velocity.dtype)
     spun = rng.normal(0.0, spin, size=omega.shape)
-    state["angular_velocity"] = (keep * omega + fresh * spun).astype(omega.dtype)
-    sim.set_state(state)
+    sim.set_velocities(
+        (keep * velocity + fresh * noise).astype(velocity.dtype),
+        (keep * omega + fresh * spun).astype(omega.dtype),
+    )
     return before

@@ -83,15 +83,13 @@ def rod_speed(sim: Simulation, speed: float, seed: int) -> float:
     bonded rods). Rigid rods: :func:`resample_speed` itself."""
     if not sim.bonded:
         return resample_speed(sim, speed, seed)
-    state = sim.get_state()
-    before = rms_velocity_component(state["velocity"])
+    velocity_now, omega_now = sim.velocities()
+    before = rms_velocity_component(velocity_now)
     chain = sim.geometry.n_spheres
     discs = unwrapped_chains(sim.body_positions(), chain, sim.cell_lengths)
     centre, inertia = rod_frames(discs, sim.body.mass, sim.body.inertia)
     rng = np.random.Generator(np.random.PCG64([int(seed), RESAMPLE_STREAM, int(sim.step)]))
     velocity, omega = draw_rod_motion(rng, sim.n_rods, speed, sim.geometry.mass, inertia)
     disc_velocity, disc_omega = rigid_disc_velocities(discs, centre, velocity, omega)
-    state["velocity"] = disc_velocity.astype(state["velocity"].dtype)
-    state["angular_velocity"] = disc_omega.astype(state["angular_velocity"].dtype)
-    sim.set_state(state)
+    sim.set_velocities(disc_velocity.astype(velocity_now.dtype), disc_omega.astype(omega_now.dtype))
     return before

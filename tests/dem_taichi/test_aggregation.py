@@ -825,3 +825,66 @@ def test_the_cluster_thermostat_refuses_bonded_rods_before_the_stage_runs():
             '[particles]\nrod_model = "bonded"\n[protocol]\naggregation = "time"\n'
             'aggregation_time = 1.0\naggregation_speed = 0.2\naggregation_thermostat = "clusters"'
         )
+
+
+def _full_restore(sim, velocity, angular_velocity) -> None:
+    """What the thermostats did before they wrote the velocities alone: a full state round trip
+    (get_state, the velocities replaced, set_state)."""
+    state = sim.get_state()
+    state["velocity"], state["angular_velocity"] = velocity, angular_velocity
+    sim.set_state(state)
+
+
+@pytest.mark.parametrize(
+    ("scene_name", "thermostat"),
+    [("smoke", "resample"), ("smoke", "refresh"), ("smoke", "rescale"), ("smoke", "clusters"),
+     ("smoke_bonded", "rods"), ("smoke_bonded", "resample")],
+)  # fmt: skip
+def test_thermostats_writing_the_velocities_alone_age_as_a_full_restore_would(
+    monkeypatch, scene_name, thermostat
+):
+    """Each thermostat writes the velocities alone (Simulation.set_velocities, a fraction of a
+    full set_state's cost at the study's size): an ageing of checks and draws reaches the same
+    state, every array bit for bit, as the same ageing whose draws go through a full restore."""
+    from dem_taichi.engine.simulation import Simulation
+    from dem_taichi.protocol import cluster_thermostat, quasistatic, rod_thermostat
+
+    draw = {
+        "resample": lambda sim: quasistatic.resample_speed(sim, 0.3, 7),
+        "refresh": lambda sim: quasistatic.refresh_speed(sim, 0.3, 7, 0.5),
+        "rescale": lambda sim: quasistatic.rescale_speed(sim, 0.3),
+        "clusters": lambda sim: cluster_thermostat.cluster_speed(sim, 0.3, 7),
+        "rods": lambda sim: rod_thermostat.rod_speed(sim, 0.3, 7),
+    }[thermostat]
+    base = load_scene(scene_name)
+    scene = base.replace(long_range=ATTRACTIVE) if scene_name == "smoke" else base
+
+    def age(sim) -> dict[str, np.ndarray]:
+        for _ in range(6):
+            sim.run(300)
+            sim.measure()  # the pair flags the cluster thermostat reads
+            draw(sim)
+        sim.run(300)
+        return sim.get_state()
+
+    alone = age(Simulation(scene))
+    with monkeypatch.context() as patch:
+        patch.setattr(Simulation, "set_velocities", _full_restore)
+        restored = age(Simulation(scene))
+    assert alone.keys() == restored.keys()
+    for key in alone:
+        np.testing.assert_array_equal(alone[key], restored[key], err_msg=key)
+    assert not np.array_equal(alone["velocity"], Simulation(scene).get_state()["velocity"])
+
+
+def test_set_velocities_refuses_arrays_that_do_not_fit():
+    from dem_taichi.engine.simulation import Simulation
+
+    sim = Simulation(attractive_scene())
+    velocity, omega = sim.velocities()
+    with pytest.raises(ValueError, match="velocity of shape"):
+        sim.set_velocities(velocity[:-1], omega)
+    with pytest.raises(ValueError, match="angular_velocity of shape .* and type float32"):
+        sim.set_velocities(velocity, omega.astype(np.float32))
+    sim.set_velocities(2.0 * velocity, omega)
+    np.testing.assert_array_equal(sim.velocities()[0], 2.0 * velocity)
