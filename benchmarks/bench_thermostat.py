@@ -16,28 +16,22 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import hashlib
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/ is not a package
+from bench_checkpoint import state_hash  # noqa: E402
 
-from dem_taichi import Simulation
-from dem_taichi.protocol.aggregation import hold
-from dem_taichi.protocol.quasistatic import resample_speed
+from dem_taichi import Simulation  # noqa: E402
+from dem_taichi.protocol.aggregation import hold  # noqa: E402
+from dem_taichi.protocol.quasistatic import resample_speed  # noqa: E402
 
 
 def _full_restore(sim, velocity, angular_velocity) -> None:
     state = sim.get_state()
     state["velocity"], state["angular_velocity"] = velocity, angular_velocity
     sim.set_state(state)
-
-
-def _state_hash(sim: Simulation) -> str:
-    state = sim.get_state()
-    digest = hashlib.sha256()
-    for key in sorted(state):
-        digest.update(np.ascontiguousarray(state[key]).tobytes())
-    return digest.hexdigest()[:16]
 
 
 def age(scene: str, checks: int, steps: int, full_restore: bool) -> tuple[str, float, float]:
@@ -53,7 +47,7 @@ def age(scene: str, checks: int, steps: int, full_restore: bool) -> tuple[str, f
         t0 = time.perf_counter()
         resample_speed(sim, 0.5, sim.scene.scene.seed)
         draws += time.perf_counter() - t0
-    return _state_hash(sim), time.perf_counter() - start, draws
+    return state_hash(sim.get_state()), time.perf_counter() - start, draws
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -265,8 +265,7 @@ class Simulation:
         return self.state_io.get_state(self.step, self.reference_lengths)
 
     def velocities(self) -> tuple[np.ndarray, np.ndarray]:
-        """Copies of the bodies' velocities and angular velocities (the thermostats' cheap
-        :meth:`get_state`; :meth:`SimulationState.velocities`)."""
+        """Copies of the velocities alone (:meth:`SimulationState.velocities`)."""
         return self.state_io.velocities()
 
     def set_velocities(self, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
