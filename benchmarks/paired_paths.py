@@ -15,8 +15,9 @@ process, and probed there; then, for each variant (``NAME=key=value;key=value``,
 the scene as given), the branches from A (A→B; A→C with C→B; each radial path, or those of
 ``--branches``) run in ``--workers`` processes from a checkpoint of A, with the variant's
 ``[protocol]``/``[probing]`` settings (the engine is the scene's: a variant may change only
-those two sections, and ``integration.dt_safety``, whose branches then run at the scaled Δt, so
-every variant starts from the bitwise same A). Writes, per variant: the
+those two sections, ``integration.dt_safety``, whose branches then run at the scaled Δt, and
+``control.inertial_number_max``, the servo's rate cap, so every variant starts from the bitwise
+same A). Writes, per variant: the
 wall time of its branches, the steps and the work ledger (:mod:`dem_taichi.engine.work_profile`) per
 stage, and the findings: those a run folder gives (λ*, the moduli exponent and E_v/p at B along
 A→B; K0 = σ_xx/σ_yy at C; fabric and E_h/E_v along the paths; the mapped window...) and, at
@@ -45,6 +46,7 @@ import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -56,9 +58,11 @@ if TYPE_CHECKING:
     from dem_taichi.protocol.records import RunLog
 
 VARIANT_SECTIONS = ("protocol", "probing")
-#: engine keys a variant may change as well: the branches then integrate with the variant's Δt
-#: (the checkpoint's Δt × the ratio of dt_safety), from the bitwise same A
-VARIANT_KEYS = ("integration.dt_safety",)
+#: engine keys a variant may change as well, from the bitwise same A: with ``dt_safety`` the
+#: branches integrate with the variant's Δt (the checkpoint's Δt × the ratio of dt_safety); with
+#: ``inertial_number_max`` the stress servo's rate cap is the variant's (times the protocol's
+#: servo safety), as a preset's is (``fast`` raises it to 3e-3)
+VARIANT_KEYS = ("integration.dt_safety", "control.inertial_number_max")
 #: the stages before A (run once per seed, shared by every variant)
 BEFORE_A = ("aggregation", "isotropic_to_A")
 
@@ -88,6 +92,9 @@ def _branch(
     prepared = sim.scene.integration.dt_safety  # the scene that reached A
     if scene.integration.dt_safety != prepared:  # a time-step variant (VARIANT_KEYS)
         sim.set_parameters(time_step=sim.time_step * scene.integration.dt_safety / prepared)
+    cap = scene.control.inertial_number_max
+    if cap != sim.scene.control.inertial_number_max:  # a rate-cap variant: the servo reads it
+        sim.scene = replace(sim.scene, control=replace(sim.scene.control, inertial_number_max=cap))
     config, probing = protocol_settings(scene), probing_settings(scene)
     log = RunLog()
     recorder = ProbeRecorder(probing, config, log)

@@ -41,6 +41,8 @@ from paired_paths import BEFORE_A  # noqa: E402
 
 #: the findings compared, with their labels
 FINDINGS = (
+    ("lambda_window", "λ* on the mapped 1–200 kPa window"),
+    ("exponent_window_v", "moduli exponent n on the mapped window"),
     ("lambda_star", "λ* (A→B)"),
     ("modulus_exponent", "moduli exponent n (A→B)"),
     ("ev_over_p_B", "E_v/p at B"),

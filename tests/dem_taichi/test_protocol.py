@@ -975,3 +975,25 @@ def test_paired_paths_pooled_variants_give_their_own_branches(run, tmp_path):
         assert entry["branch_process_seconds"] == sum(entry["branch_seconds"].values()) > 0
     with pytest.raises(SystemExit, match="may change"):
         module.main([*argv[:-4], "--variant", "k=contact.k_n=1", "--out", str(out)])
+
+
+# a benchmark tool's check (~20-30 s: spawned branch processes), run by `make test-slow`
+@pytest.mark.slow
+def test_paired_paths_rate_cap_variant_sets_the_servos_cap(run, tmp_path):
+    """``paired_paths.py``: a variant of ``control.inertial_number_max`` (a preset's rate cap)
+    reaches the servo of its branches: twice the smoke scene's 1e-3 at the servo's safety 0.5
+    gives the branch of safety 1.0 at 1e-3 bit for bit (the same cap, 1e-3), and not the run's."""
+    import json
+
+    module = _benchmark_module("paired_paths")
+    out = tmp_path / "cap.json"
+    assert smoke_protocol_scene().control.inertial_number_max == 1e-3
+    argv = ["--from-run", str(run.out_dir), "--branches", "isotropic", "--pool", "--workers", "2",
+            "--variant", "i2=control.inertial_number_max=2e-3",
+            "--variant", "s1=protocol.servo_inertial_number_safety=1.0"]  # fmt: skip
+    assert module.main([*argv, "--out", str(out)]) == 0
+    variants = json.loads(out.read_text())["variants"]
+    i2, s1 = variants["i2"], variants["s1"]
+    assert i2["findings"]["specific_volume@B"] == s1["findings"]["specific_volume@B"]
+    assert i2["steps"] == s1["steps"]
+    assert i2["steps"]["A_to_B"] != run.stages["A_to_B"].steps
