@@ -15,11 +15,11 @@ The measured cost and error of each preset (wall time and the error of each find
 converged reference run of the same sample, isotropic and K0 paths of the ``default`` scene)
 are in ``benchmarks/results/speed_accuracy.md`` (``benchmarks/speed_accuracy.py``) and in the
 README; at the study's size (the ``study`` scene's branches from A, 1520 rods, five seeds),
-``fast`` against ``balanced`` in ``benchmarks/results/study_fast_preset.md``. ``balanced`` is the built-in scenes' own integration and loading (dt_safety 0.15,
-inertial number 1e-3, UFR 1e-4) with the secant servo, the paper scene's (``paper_bonded``
-integrates at dt_safety 0.30, measured in ``benchmarks/results/bonded_time_step.md``: a preset
-sets it back to the preset's value); ``fast`` and ``accurate`` move every knob one step each
-way.
+``fast`` against ``balanced`` in ``benchmarks/results/study_fast_preset.md``. ``balanced`` is
+the built-in scenes' own integration and loading (dt_safety 0.15, inertial number 1e-3, UFR
+1e-4) with the secant servo, the paper scene's (``paper_bonded`` integrates at dt_safety 0.30,
+measured in ``benchmarks/results/bonded_time_step.md``: a preset sets it back to the preset's
+value); ``fast`` and ``accurate`` move every knob one step each way.
 
 Keys (``section.key``) and why each is a knob (units: DEM, time in units of sqrt(m/k_n)·…):
 
