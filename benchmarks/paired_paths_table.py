@@ -20,8 +20,10 @@ variant/base of the mean overlap of the touching disc pairs and of their 99th pe
 each of B, C and B′, their geometric mean over the states, and over the seeds that recorded them
 the mean of its logarithm ± 95 % (Student t) shown as a ratio, beside the null pair's; flagged
 where the variant's interval lies wholly above 1 and its ratio exceeds the null pair's by more
-than 5 %. With ``--a-files FILE.json ...`` (``paired_paths.py --branches none`` runs: the same
-gases compressed to A with other settings), state A of each seed beside the base's.
+than 5 %; and the null pair's redraw per finding: the sd of its paired differences against the
+base's seed sd (about √2 where the paths decorrelate completely). With ``--a-files FILE.json
+...`` (``paired_paths.py --branches none`` runs: the same gases compressed to A with other
+settings), state A of each seed beside the base's.
 """
 
 from __future__ import annotations
@@ -201,6 +203,28 @@ def table(seeds: list[dict], base: str, null: str | None = None) -> list[str]:
     return lines
 
 
+def redraw_table(seeds: list[dict], base: str, null: str) -> list[str]:
+    """How much the null pair redraws each finding: the sd of its paired differences (null −
+    base) over the seeds against the base's seed-to-seed sd. About √2 where the paths from A
+    decorrelate completely (the null pair's trajectory as independent of the base's as another
+    seed's), 0 where the finding does not depend on the trajectory from A."""
+    lines = [
+        "", f"### The null pair's redraw: sd of {null} − {base} against the seed sd", "",
+        f"| finding | {base}: seed sd | sd of {null} − {base} | ratio (√2 ≈ 1.41: decorrelated) |",
+        "|---|---|---|---|",
+    ]  # fmt: skip
+    for key, label in FINDINGS:
+        base_values = [v for v in (_value(s, base, key) for s in seeds) if math.isfinite(v)]
+        differences = [d for d in _differences(seeds, null, base, key) if math.isfinite(d)]
+        if len(base_values) < 2 or len(differences) < 2:
+            continue
+        sd = float(np.std(base_values, ddof=1))
+        spread = float(np.std(differences, ddof=1))
+        ratio = f"{spread / sd:.2f}" if sd > 0 else "—"
+        lines.append(f"| {label} | {sd:.3g} | {spread:.3g} | {ratio} |")
+    return lines
+
+
 #: the labelled states whose overlaps are compared, and the overlap measures
 OVERLAP_STATES = ("B", "C", "B'")
 OVERLAP_MEASURES = (("mean_overlap", "mean δ/d"), ("p99_overlap", "99th percentile of δ/d"))
@@ -335,6 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = merge_by_seed([json.loads(p.read_text()) for p in args.seeds])
     lines = table(seeds, args.base, args.null)
     if args.null is not None:
+        lines += redraw_table(seeds, args.base, args.null)
         lines += overlap_table(seeds, args.base, args.null)
     if args.a_files:
         lines += a_table(seeds, [json.loads(p.read_text()) for p in args.a_files], args.base)

@@ -155,3 +155,20 @@ def test_a_variant_not_run_on_every_seed_is_left_out_and_said_so(tables):
     text = "\n".join(tables.table(seeds, "base"))
     assert "Left out (not run on every seed): extra." in text
     assert "| extra |" not in text and "| fast |" in text
+
+
+def test_the_null_pairs_redraw_is_the_sd_of_its_differences_over_the_seed_sd(tables):
+    """λ* of the base 0.17, 0.18, 0.19 over three seeds (sd 0.01); the null pair moves it by
+    +0.02, 0, −0.02 (sd 0.02): a ratio of 2. A finding the null pair leaves alone reads 0."""
+    seeds = [
+        {"seed": s, "variants": {
+            "base": {"findings": {"lambda_window": b, "ev_over_p_B": e}},
+            "null": {"findings": {"lambda_window": b + d, "ev_over_p_B": e}},
+        }}
+        for s, b, d, e in ((3, 0.17, 0.02, 120.0), (4, 0.18, 0.0, 130.0), (5, 0.19, -0.02, 140.0))
+    ]  # fmt: skip
+    lines = tables.redraw_table(seeds, "base", "null")
+    rows = {line.split("|")[1].strip(): line for line in lines if line.startswith("|")}
+    assert rows["λ* on the mapped 1–200 kPa window"].endswith("| 0.01 | 0.02 | 2.00 |")
+    assert rows["E_v/p at B"].endswith("| 10 | 0 | 0.00 |")
+    assert "moduli exponent n on the mapped window" not in rows  # no values: no row
