@@ -469,7 +469,7 @@ class ProtocolConfig(SceneSection):
             scene, "aggregation_time_step_factor", self.aggregation_time_step_factor, aged_bonded
         )
         check_time_step_factor(
-            scene, "path_time_step_factor", self.path_time_step_factor, scene.bonded
+            scene, "path_time_step_factor", self.path_time_step_factor, scene.bonded, jammed=True
         )
         lr = scene.long_range
         if self.pressure_tolerance_reduced is not None and not (

@@ -2,6 +2,8 @@
 the scene loader :mod:`dem_taichi.scene.config` and by the sections' own checks).
 
 - :data:`BONDED_DT_SAFETY_LIMIT`: the largest ``dt_safety`` of bonded rods, measured.
+- :data:`RIGID_DT_SAFETY_LIMIT`: the largest ``dt_safety`` of rigid rods on jammed packings,
+  measured.
 - :func:`tangential_stiffness_limit`: the largest k_t/k_n the leapfrog step resolves.
 - :func:`check_time_step_factor`: a ``[protocol]`` time-step multiple held to both.
 """
@@ -12,11 +14,20 @@ import math
 
 from dem_taichi.scene.base import SceneError
 
-__all__ = ["BONDED_DT_SAFETY_LIMIT", "tangential_stiffness_limit", "check_time_step_factor"]
+__all__ = [
+    "BONDED_DT_SAFETY_LIMIT",
+    "RIGID_DT_SAFETY_LIMIT",
+    "tangential_stiffness_limit",
+    "check_time_step_factor",
+]
 
 #: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
 #: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
 BONDED_DT_SAFETY_LIMIT = 0.4
+#: Largest dt_safety of rigid rods on jammed packings: stable to 0.35, blown up at 0.40 within
+#: 50,000 steps under the stress servo (300 rods of 5 discs at p = 10, no long-range forces;
+#: ``benchmarks/results/dem_stability.csv``, ``benchmarks/bench_dem.py --stability``).
+RIGID_DT_SAFETY_LIMIT = 0.35
 
 
 def tangential_stiffness_limit(dt_safety: float) -> float:
@@ -29,21 +40,29 @@ def tangential_stiffness_limit(dt_safety: float) -> float:
     return (2.0 / (math.pi * dt_safety)) ** 2 / 3.0
 
 
-def check_time_step_factor(scene, key: str, factor: float | None, bonded: bool) -> None:
+def check_time_step_factor(
+    scene, key: str, factor: float | None, bonded: bool, jammed: bool = False
+) -> None:
     """Refuse a ``[protocol]`` time-step multiple (``key``, ``factor``) that takes the scene's
     integration past what its own ``dt_safety`` is held to: the measured stability limit of
-    bonded rods (``bonded``: the stage integrates bonds) and the tangential spring's leapfrog
-    bound (:func:`tangential_stiffness_limit`)."""
+    bonded rods (``bonded``: the stage integrates bonds), that of rigid rods on jammed packings
+    (``jammed``: the stage loads the packing of A, as the paths from A do) and the tangential
+    spring's leapfrog bound (:func:`tangential_stiffness_limit`)."""
     if factor is None or factor <= 1.0:
         return
     dt_safety = scene.integration.dt_safety
     effective = dt_safety * factor
-    if bonded and effective > BONDED_DT_SAFETY_LIMIT:
-        raise SceneError(
-            f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
-            f"{effective:.3g}, beyond the measured stability limit of bonded rods, "
-            f"{BONDED_DT_SAFETY_LIMIT}: allowed {key} <= {BONDED_DT_SAFETY_LIMIT / dt_safety:.3g}"
-        )
+    for applies, limit, rods in (
+        (bonded, BONDED_DT_SAFETY_LIMIT, "bonded rods"),
+        (jammed and not bonded, RIGID_DT_SAFETY_LIMIT, "rigid rods on jammed packings"),
+    ):
+        if applies and effective > limit:
+            raise SceneError(
+                f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
+                f"{effective:.3g}, beyond the measured stability limit of {rods}, {limit}: "
+                f"allowed {key} <= {limit / dt_safety:.3g} (e.g. --set protocol.{key}=1), or a "
+                "smaller dt_safety"
+            )
     c = scene.contact
     limit = tangential_stiffness_limit(effective)
     if c.k_t > limit * c.k_n:

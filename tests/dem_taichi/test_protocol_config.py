@@ -132,3 +132,12 @@ def test_a_path_time_step_factor_is_held_to_the_scenes_stability_bounds():
         scene_with_overrides(bonded, aged)
     scene_with_overrides(bonded, [*aged, 'protocol.aggregation_rod_model="rigid"'])
     assert protocol_settings(load_scene("smoke")).path_time_step(0.25) == 0.25  # unset: 1
+    # rigid rods' paths held to their measured limit on jammed packings (0.35), not the ageing
+    rigid = scene_with_overrides(load_scene("smoke"), ["integration.dt_safety=0.2"])
+    scene_with_overrides(rigid, ["protocol.path_time_step_factor=1.7"])  # 0.34: loads
+    with pytest.raises(SceneError, match=r"= 1.8 × .* is 0.36, beyond .* rigid rods on jammed "):
+        scene_with_overrides(rigid, ["protocol.path_time_step_factor=1.8"])
+    scene_with_overrides(
+        rigid, ['protocol.aggregation="time"', "protocol.aggregation_time=10",
+                "protocol.aggregation_time_step_factor=2"],
+    )  # fmt: skip

@@ -30,6 +30,9 @@ DECLARED = {
     # beyond the null pair's spread over 5 seeds (benchmarks/results/study_servo.md)
     ("protocol", "servo_stiffness"): "secant",
     ("protocol", "servo_inertial_number_safety"): 1.0,
+    # the paths from A at 5/3 Δt: 0.63 of their steps, no headline finding nor overlap moved
+    # beyond a null pair's over 5 seeds from the same A (benchmarks/results/study_fast_preset.md)
+    ("protocol", "path_time_step_factor"): 1.6666666666666667,
     # a sparser gas aged twice as long (cell SP05): λ* on 1–200 kPa 0.182 ± 0.028 against
     # 0.158 ± 0.014 at 1520 rods, E_v/p at B kept (benchmarks/results/study_clay_looser.md)
     ("particles", "initial_area_fraction"): 0.05,
@@ -68,12 +71,16 @@ def test_the_study_scene_is_cell_p8_at_1520_rods_with_the_declared_changes():
 
 def test_the_demo_scene_is_the_study_scene_at_300_rods():
     """`make demo` runs the study's material at an affordable size, without the radial paths
-    (benchmarks/results/study_demo.md), nothing else changed."""
+    (benchmarks/results/study_demo.md) and with its paths at the scene's Δt, nothing else
+    changed."""
     study, demo = _flat(scene_from_options("study")), _flat(scene_from_options("study_demo"))
     differing = {key for key in study.keys() | demo.keys() if study.get(key) != demo.get(key)}
     assert differing == {
         ("particles", "n_rods"), ("scene", "name"), ("scene", "description"),
         ("protocol", "radial_stress_ratios"), ("probing", "states"),
+        # paired at 1520 rods only: the demo keeps its paths at the scene's Δt (its replica
+        # tables, benchmarks/results/study_demo*.md, and make demo's findings with them)
+        ("protocol", "path_time_step_factor"),
     }  # fmt: skip
     assert demo[("protocol", "radial_stress_ratios")] == ""
     assert demo[("particles", "n_rods")] == 300 and demo[("scene", "name")] == "study_demo"
