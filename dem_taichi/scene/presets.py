@@ -24,7 +24,10 @@ value); ``fast`` and ``accurate`` move every knob one step each way.
 Keys (``section.key``) and why each is a knob (units: DEM, time in units of sqrt(m/k_n)·…):
 
 - ``integration.dt_safety``: Δt / t_c. Stable to 0.35 on jammed packings
-  (``benchmarks/results/dem_stability.csv``); ``fast`` stays below it with a margin.
+  (``benchmarks/results/dem_stability.csv``); ``fast`` stays below it with a margin. A scene
+  whose paths step at a multiple of it (``[protocol] path_time_step_factor``: ``study``'s 5/3)
+  multiplies the preset's value too; past 0.35 on rigid rods the scene is refused at load
+  (``fast`` on ``study``: ``--set protocol.path_time_step_factor=1`` mends it).
 - ``control.inertial_number_max``: the quasi-static loading-rate cap I = ε̇ d sqrt(ρ/p).
 - ``protocol.servo_stiffness``: "secant" reaches each stress target near the rate cap,
   "elastic" approaches it slower on plastic paths (servo_trade results: 2× the wall time).
