@@ -5,7 +5,8 @@ the scene loader :mod:`dem_taichi.scene.config` and by the sections' own checks)
 - :data:`RIGID_DT_SAFETY_LIMIT`: the largest ``dt_safety`` of rigid rods on jammed packings,
   measured.
 - :func:`tangential_stiffness_limit`: the largest k_t/k_n the leapfrog step resolves.
-- :func:`check_time_step_factor`: a ``[protocol]`` time-step multiple held to both.
+- :func:`check_time_step_factor`: a ``[protocol]`` time-step multiple held to these (a
+  scene's own ``dt_safety`` of rigid rods is not: past the limit a run stops at the blow-up).
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ __all__ = [
 #: Largest dt_safety of bonded rods: stable to 0.40, blown up at 0.45 within 100 steps on jammed
 #: 300-rod packings, bending 0.3 and 1 (``benchmarks/bench_bonded.py --stability``).
 BONDED_DT_SAFETY_LIMIT = 0.4
-#: Largest dt_safety of rigid rods on jammed packings: stable to 0.35, blown up at 0.40 within
-#: 50,000 steps under the stress servo (300 rods of 5 discs at p = 10, no long-range forces;
-#: ``benchmarks/results/dem_stability.csv``, ``benchmarks/bench_dem.py --stability``).
+#: Largest dt_safety of rigid rods on jammed packings: stable to 0.35, blown up at 0.40 (an
+#: overlap past 0.2 d) under the stress servo, 300 rods of 5 discs at p = 10 without long-range
+#: forces (``benchmarks/results/dem_stability.csv``, ``benchmarks/bench_dem.py --stability``).
 RIGID_DT_SAFETY_LIMIT = 0.35
 
 
