@@ -53,17 +53,19 @@ def check_time_step_factor(
         return
     dt_safety = scene.integration.dt_safety
     effective = dt_safety * factor
-    for applies, limit, rods in (
-        (bonded, BONDED_DT_SAFETY_LIMIT, "bonded rods"),
-        (jammed and not bonded, RIGID_DT_SAFETY_LIMIT, "rigid rods on jammed packings"),
-    ):
-        if applies and effective > limit:
-            raise SceneError(
-                f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
-                f"{effective:.3g}, beyond the measured stability limit of {rods}, {limit}: "
-                f"allowed {key} <= {limit / dt_safety:.3g} (e.g. --set protocol.{key}=1), or a "
-                "smaller dt_safety"
-            )
+    if bonded:
+        limit, rods = BONDED_DT_SAFETY_LIMIT, "bonded rods"
+    elif jammed:
+        limit, rods = RIGID_DT_SAFETY_LIMIT, "rigid rods on jammed packings"
+    else:
+        limit, rods = math.inf, ""
+    if effective > limit:
+        raise SceneError(
+            f"[protocol] {key} = {factor!r} × [integration] dt_safety = {dt_safety!r} is "
+            f"{effective:.3g}, beyond the measured stability limit of {rods}, {limit}: "
+            f"allowed {key} <= {limit / dt_safety:.3g} (e.g. --set protocol.{key}=1), or a "
+            "smaller dt_safety"
+        )
     c = scene.contact
     limit = tangential_stiffness_limit(effective)
     if c.k_t > limit * c.k_n:
