@@ -6,7 +6,9 @@ Usage::
         --panel paper benchmarks/results/paired_paths/*.json \
             benchmarks/results/paper_path_time_step/*.json \
             benchmarks/results/paper_path_no_dashpot/*.json \
+            benchmarks/results/paper_path_five_thirds/*.json \
         --panel paper_bonded benchmarks/results/bonded_time_step/seed*.json \
+        --panel study benchmarks/results/study_fast_preset/seed*.json \
         [--out benchmarks/results/paper_size_pareto]
 
 Every file is a ``benchmarks/paired_paths.py`` record of one seed: the variants' branches
@@ -18,7 +20,7 @@ seeds it ran:
   are used rather than seconds because the records come from several days and machines; the
   steps are deterministic, and a step costs the same in every variant of a scene;
 - **error**: for every finding of ``paired_paths_table.FINDINGS`` with a base value on at
-  least two seeds (18 here: the radial ends are not in these records), |mean paired
+  least two seeds (18–23 here: the radial ends are not in these records), |mean paired
   difference| over the base's seed-to-seed standard deviation (the replica noise at the paper
   size); the median over the findings, and the largest.
 
@@ -149,7 +151,7 @@ def figure(panels: dict, null: str, path: Path) -> None:
             several = len(p["seeds"]) >= 3  # hollow: fewer seeds (compare in the table)
             ax.scatter([x], [p["median"]], s=60, zorder=3, facecolors=None if several else "none",
                        edgecolors=f"C{points.index(p)}", color=f"C{points.index(p)}")  # fmt: skip
-            offset = (5, 4 + 10 * (points.index(p) % 2))  # neighbours' labels apart
+            offset = (5, 4 + 10 * (points.index(p) % 3))  # neighbours' labels apart
             ax.annotate(p["variant"], (x, p["median"]), textcoords="offset points", xytext=offset)
         if failed:
             ax.text(0.02, 0.97, "failed: " + ", ".join(failed), transform=ax.transAxes, va="top")
